@@ -1,0 +1,82 @@
+"""package.xml declares what the code imports, and layers import one way."""
+
+import ast
+from pathlib import Path
+import sys
+import xml.etree.ElementTree as ET
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / 'extended_tracker'
+
+# Python module -> rosdep key in package.xml
+ROSDEP_OF = {
+    'numpy': 'python3-numpy',
+    'scipy': 'python3-scipy',
+    'yaml': 'python3-yaml',
+    'matplotlib': 'python3-matplotlib',
+    'rosbags': 'python3-rosbags',
+    'pytest': 'python3-pytest',
+    'hypothesis': 'python3-hypothesis',
+}
+ROS_MODULES = {
+    'rclpy', 'sensor_msgs', 'visualization_msgs', 'geometry_msgs', 'std_msgs',
+    'builtin_interfaces', 'rcl_interfaces', 'extended_tracker_msgs', 'ament_index_python',
+}
+# The core: numpy/scipy only. Bag I/O may add rosbags; only extended_tracker.ros may add ROS.
+CORE_ALLOWED = {'numpy', 'scipy'}
+# Edge modules outside ros/: bag I/O, command line, plots. They may add rosbags, yaml and
+# matplotlib, never rclpy or message packages.
+EDGE_MODULES = {'bagio.py', 'cli.py', 'replay.py', 'plotting.py', 'evaluate.py', 'bench.py'}
+
+
+def _imports(path):
+    tree = ast.parse(path.read_text())
+    mods = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            mods.update(a.name.split('.')[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            mods.add(node.module.split('.')[0])
+    return mods
+
+
+def _declared(tags):
+    root = ET.parse(ROOT / 'package.xml').getroot()
+    return {e.text.strip() for t in tags for e in root.findall(t)}
+
+
+def _third_party(mods):
+    std = set(sys.stdlib_module_names)
+    return {m for m in mods if m not in std and m != 'extended_tracker'}
+
+
+def test_runtime_imports_are_declared():
+    declared = _declared(['depend', 'exec_depend'])
+    used = set()
+    for f in PKG.rglob('*.py'):
+        used |= _third_party(_imports(f))
+    for mod in sorted(used):
+        key = ROSDEP_OF.get(mod, mod)
+        if mod == 'ament_index_python':
+            key = 'ament_index_python'
+        assert key in declared, f'{f}: imports {mod}, package.xml lacks {key}'
+
+
+def test_test_imports_are_declared():
+    declared = _declared(['depend', 'exec_depend', 'test_depend'])
+    for f in (ROOT / 'test').rglob('*.py'):
+        for mod in _third_party(_imports(f)):
+            key = ROSDEP_OF.get(mod, mod)
+            assert key in declared, f'{f.name}: imports {mod}, package.xml lacks {key}'
+
+
+def test_core_layers_import_one_way():
+    for f in PKG.rglob('*.py'):
+        rel = f.relative_to(PKG)
+        mods = _third_party(_imports(f))
+        if rel.parts[0] == 'ros':
+            continue
+        if rel.name in EDGE_MODULES:
+            assert not (mods & ROS_MODULES), f'{rel} imports ROS: {sorted(mods & ROS_MODULES)}'
+            continue
+        assert mods <= CORE_ALLOWED, f'core module {rel} imports {sorted(mods - CORE_ALLOWED)}'

