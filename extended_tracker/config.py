@@ -1,0 +1,307 @@
+"""
+Configuration: one validated dataclass tree, the single source of truth.
+
+Every leaf field carries its description, unit and range in ``metadata``; the YAML in
+``config/`` and the ROS parameter descriptors are generated from or checked against it.
+Flat names join the tree with dots (``model.mode``, ``partition.d_max``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+import math
+from typing import Any
+
+from .errors import ConfigError
+
+
+def _f(default, description, unit='', lo=None, hi=None, choices=None, lo_open=False):
+    """Declare a leaf field with its documentation and valid range."""
+    meta = {'description': description, 'unit': unit, 'min': lo, 'max': hi,
+            'choices': choices, 'lo_open': lo_open}
+    if isinstance(default, (list, tuple)):
+        return field(default_factory=lambda: list(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Multi-object filter: mode, cardinality, motion and measurement model."""
+
+    mode: str = _f('cphd', 'multi-object update: cphd, or phd (its Poisson special case)',
+                   choices=('cphd', 'phd'))
+    n_max: int = _f(40, 'cardinality pmf truncated at this many objects', 'objects', 1, 200)
+    p_survival: float = _f(0.99, 'probability an object survives one second', '', 0.0, 1.0,
+                           lo_open=True)
+    sigma_accel: float = _f(2.0, 'white acceleration noise of the CV model', 'm/s^2', 0.0, 50.0,
+                            lo_open=True)
+    tau_rate: float = _f(2.0, 'time constant of measurement-rate forgetting', 's', 0.0, 1e4,
+                         lo_open=True)
+    tau_extent: float = _f(2.0, 'time constant of extent forgetting', 's', 0.0, 1e4,
+                           lo_open=True)
+    rho: float = _f(0.25, 'scale of the extent in the measurement spread (rho X + R)', '',
+                    0.0, 4.0, lo_open=True)
+    sigma_range: float = _f(0.03, 'std of the sensor noise R = sigma^2 I', 'm', 0.0, 2.0,
+                            lo_open=True)
+    clutter_rate: float = _f(1.0, 'mean number of clutter detections per scan (Poisson)',
+                             'detections', 0.0, 1e4, lo_open=True)
+    surveillance_area: float = _f(100.0, 'clutter area when the scan does not give one', 'm^2',
+                                  0.0, 1e8, lo_open=True)
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Probability of detection."""
+
+    model: str = _f('scan_shadow', 'p_D model: scan_shadow, estimate_shadow or constant',
+                    choices=('scan_shadow', 'estimate_shadow', 'constant'))
+    p_d0: float = _f(0.95, 'probability of detection of an object in full view', '', 0.0, 1.0,
+                     lo_open=True)
+    shadow_margin: float = _f(0.3, 'a return this much nearer than the object shadows it', 'm',
+                              0.0, 10.0)
+    widen_sigmas: float = _f(1.0, 'angular interval widened by this many position stds', '',
+                             0.0, 5.0)
+    scale_rate_by_visibility: bool = _f(True, 'expected detections scaled by the visible '
+                                        'fraction')
+    min_visibility: float = _f(0.05, 'visible fraction below which an object counts as hidden',
+                               '', 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class PartitionConfig:
+    """Measurement partitioning and gating."""
+
+    d_min: float = _f(0.1, 'smallest distance threshold of distance partitioning', 'm', 0.0,
+                      10.0)
+    d_max: float = _f(0.8, 'largest distance threshold of distance partitioning', 'm', 0.0,
+                      20.0, lo_open=True)
+    max_partitions: int = _f(40, 'cap on the number of partitions per scan', '', 1, 10000)
+    max_cells: int = _f(600, 'cap on the number of distinct cells per scan', '', 1, 100000)
+    sub_partition: bool = _f(True, 'split cells that likely hold several objects (k-means++)')
+    max_sub_objects: int = _f(4, 'most objects sub-partitioning splits one cell into', '', 2,
+                              20)
+    prediction_partition: bool = _f(True, 'add a partition from the gates of confident tracks')
+    gate_probability: float = _f(0.999, 'chi-square gate probability of (component, cell)', '',
+                                 0.5, 1.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class BirthConfig:
+    """Measurement-driven birth and configured birth regions."""
+
+    weight: float = _f(0.1, 'weight of a birth component', '', 0.0, 1.0, lo_open=True)
+    unexplained: float = _f(0.5, 'a cell whose detected weight is below this seeds a birth', '',
+                            0.0, 10.0)
+    min_points: int = _f(2, 'fewest detections in a cell that seeds a birth', 'detections', 1,
+                         1000)
+    position_std: float = _f(0.2, 'position std of a birth component', 'm', 0.0, 10.0,
+                             lo_open=True)
+    velocity_std: float = _f(1.5, 'velocity std of a birth component', 'm/s', 0.0, 50.0,
+                             lo_open=True)
+    dof: float = _f(12.0, 'inverse Wishart v of a birth component (> 6)', '', 6.0, 1e5,
+                    lo_open=True)
+    rate_shape: float = _f(4.0, 'Gamma alpha of a birth component (beta from its cell size)',
+                           '', 0.0, 1e5, lo_open=True)
+    min_semi_axis: float = _f(0.1, 'floor of a birth extent semi-axis', 'm', 0.0, 10.0,
+                              lo_open=True)
+    regions: list = _f([], 'birth regions, flat list of x, y, std triples', 'm')
+
+
+@dataclass(frozen=True)
+class ReductionConfig:
+    """Pruning, merging and capping of the mixture."""
+
+    prune_weight: float = _f(1e-3, 'components lighter than this are dropped', '', 0.0, 1.0)
+    merge_distance: float = _f(4.0, 'squared Mahalanobis distance for merging one label', '',
+                               0.0, 1e4)
+    max_components: int = _f(150, 'cap on the number of components', '', 1, 100000)
+    split_weight: float = _f(0.4, 'a far component of a label this heavy gets a new label', '',
+                             0.0, 10.0)
+
+
+@dataclass(frozen=True)
+class ExtractionConfig:
+    """Which labels are reported and how they are drawn."""
+
+    min_existence: float = _f(0.3, 'labels lighter than this are never reported', '', 0.0, 1.0)
+    phd_threshold: float = _f(0.5, 'phd mode reports labels heavier than this', '', 0.0, 1.0)
+    confirm_scans: int = _f(3, 'scans a label is reported before it counts as confirmed', '',
+                            1, 1000)
+    rectangle_length: float = _f(1.2, 'objects longer than this are drawn as rectangles', 'm',
+                                 0.0, 100.0)
+    rectangle_elongation: float = _f(1.8, 'or more elongated than this (semi-axes ratio)', '',
+                                     1.0, 100.0)
+
+
+@dataclass(frozen=True)
+class ScanConfig:
+    """Scan conversion."""
+
+    min_range: float = _f(0.0, 'extra lower range limit on top of the scan range_min', 'm', 0.0,
+                          1000.0)
+    max_range: float = _f(0.0, 'extra upper range limit (0: only the scan range_max)', 'm', 0.0,
+                          1000.0)
+    range_max_inclusive: bool = _f(False, 'keep returns exactly at range_max (drivers often '
+                                   'report no return as range_max)')
+
+
+@dataclass(frozen=True)
+class BackgroundConfig:
+    """Static background learned per beam for a stationary sensor."""
+
+    enabled: bool = _f(True, 'learn and drop the static background (stationary sensor)')
+    margin: float = _f(0.15, 'a return within this of the background range is background',
+                       'm', 0.0, 10.0)
+    learn_time: float = _f(2.0, 'time constant of learning a beam background', 's', 0.0, 1e4,
+                           lo_open=True)
+    forget_time: float = _f(30.0, 'time for a background beam to forget a removed object', 's',
+                            0.0, 1e5, lo_open=True)
+    confirm_time: float = _f(1.0, 'a beam must return the same range this long to be background',
+                             's', 0.0, 1e4)
+    track_gate: float = _f(0.5, 'returns this close to a confirmed track are never background',
+                           'm', 0.0, 10.0)
+
+
+@dataclass(frozen=True)
+class TimeConfig:
+    """Handling of scan stamps."""
+
+    max_gap: float = _f(2.0, 'a gap longer than this re-initialises the filter', 's', 0.0, 1e5,
+                        lo_open=True)
+    default_dt: float = _f(0.1, 'dt of the first scan after a reset', 's', 0.0, 10.0,
+                           lo_open=True)
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Everything the per-scan pipeline needs."""
+
+    model: ModelConfig = field(default_factory=ModelConfig)
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
+    partition: PartitionConfig = field(default_factory=PartitionConfig)
+    birth: BirthConfig = field(default_factory=BirthConfig)
+    reduction: ReductionConfig = field(default_factory=ReductionConfig)
+    extraction: ExtractionConfig = field(default_factory=ExtractionConfig)
+    scan: ScanConfig = field(default_factory=ScanConfig)
+    background: BackgroundConfig = field(default_factory=BackgroundConfig)
+    timing: TimeConfig = field(default_factory=TimeConfig)
+
+    def __post_init__(self):
+        validate(self)
+
+
+def _check_leaf(name: str, value: Any, f) -> None:
+    meta = f.metadata
+    expected = f.type if isinstance(f.type, str) else f.type.__name__
+    if expected == 'bool':
+        if not isinstance(value, bool):
+            raise ConfigError(f'{name} must be true or false, got {value!r}')
+        return
+    if expected == 'str':
+        if not isinstance(value, str) or (meta['choices'] and value not in meta['choices']):
+            raise ConfigError(f'{name} must be one of {meta["choices"]}, got {value!r}')
+        return
+    if expected == 'list':
+        if not isinstance(value, (list, tuple)) or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) for v in value):
+            raise ConfigError(f'{name} must be a list of finite numbers, got {value!r}')
+        if name.endswith('regions') and len(value) % 3:
+            raise ConfigError(f'{name} holds x, y, std triples; got {len(value)} numbers')
+        return
+    if expected == 'int' and (isinstance(value, bool) or not isinstance(value, int)):
+        raise ConfigError(f'{name} must be an integer, got {value!r}')
+    if expected == 'float':
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f'{name} must be a number, got {value!r}')
+        if not math.isfinite(value):
+            raise ConfigError(f'{name} must be finite, got {value!r}')
+    lo, hi = meta['min'], meta['max']
+    if lo is not None and (value < lo or (meta['lo_open'] and value == lo)):
+        op = '>' if meta['lo_open'] else '>='
+        raise ConfigError(f'{name} must be {op} {lo} {meta["unit"]}, got {value!r}'.replace(
+            '  ', ' '))
+    if hi is not None and value > hi:
+        raise ConfigError(f'{name} must be <= {hi} {meta["unit"]}, got {value!r}')
+
+
+def validate(cfg: TrackerConfig) -> None:
+    """
+    Check every leaf of ``cfg`` against its declared type and range.
+
+    Raises
+    ------
+    ConfigError
+        Naming the first bad field, its valid range and the value given.
+
+    """
+    for path, f, value in iter_leaves(cfg):
+        _check_leaf(path, value, f)
+    if cfg.partition.d_min > cfg.partition.d_max:
+        raise ConfigError(f'partition.d_min ({cfg.partition.d_min}) must not exceed '
+                          f'partition.d_max ({cfg.partition.d_max})')
+
+
+def iter_leaves(cfg, prefix=''):
+    """Yield ``(dotted_name, dataclass_field, value)`` for every leaf of ``cfg``."""
+    for f in fields(cfg):
+        value = getattr(cfg, f.name)
+        name = f'{prefix}{f.name}'
+        if is_dataclass(value):
+            yield from iter_leaves(value, name + '.')
+        else:
+            yield name, f, value
+
+
+def to_dict(cfg: TrackerConfig) -> dict:
+    """Nested plain dict of ``cfg``."""
+    return asdict(cfg)
+
+
+def to_flat(cfg: TrackerConfig) -> dict[str, Any]:
+    """Flat ``{'model.mode': 'cphd', ...}`` view of ``cfg``."""
+    return {name: value for name, _, value in iter_leaves(cfg)}
+
+
+def from_dict(data: dict | None) -> TrackerConfig:
+    """
+    Build a validated config from a nested dict; unknown keys are refused.
+
+    Raises
+    ------
+    ConfigError
+        On an unknown section or key, or a bad value.
+
+    """
+    data = dict(data or {})
+    base = TrackerConfig()
+    sections = {}
+    for f in fields(base):
+        sub = data.pop(f.name, None)
+        if sub is None:
+            continue
+        if not isinstance(sub, dict):
+            raise ConfigError(f'section {f.name} must be a mapping, got {sub!r}')
+        known = {g.name: g for g in fields(getattr(base, f.name))}
+        unknown = set(sub) - set(known)
+        if unknown:
+            raise ConfigError(f'unknown keys in {f.name}: {sorted(unknown)}')
+        coerced = {}
+        for key, val in sub.items():
+            if known[key].type == 'float' and isinstance(val, int) and not isinstance(val, bool):
+                val = float(val)
+            coerced[key] = val
+        sections[f.name] = replace(getattr(base, f.name), **coerced)
+    if data:
+        raise ConfigError(f'unknown configuration sections: {sorted(data)}')
+    return replace(base, **sections)
+
+
+def from_flat(flat: dict[str, Any]) -> TrackerConfig:
+    """Build a validated config from dotted names (as ROS parameters give them)."""
+    nested: dict[str, dict] = {}
+    for name, value in flat.items():
+        section, _, key = name.partition('.')
+        if not key:
+            raise ConfigError(f'parameter {name!r} is not of the form section.key')
+        nested.setdefault(section, {})[key] = value
+    return from_dict(nested)
