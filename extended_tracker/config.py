@@ -87,23 +87,27 @@ class PartitionConfig:
 
 @dataclass(frozen=True)
 class BirthConfig:
-    """Measurement-driven birth and configured birth regions."""
+    """Birth: a uniform birth intensity evaluated per cell, and configured birth regions."""
 
-    weight: float = _f(0.1, 'weight of a birth component', '', 0.0, 1.0, lo_open=True)
-    unexplained: float = _f(0.5, 'a cell whose detected weight is below this seeds a birth', '',
-                            0.0, 10.0)
-    min_points: int = _f(2, 'fewest detections in a cell that seeds a birth', 'detections', 1,
-                         1000)
-    position_std: float = _f(0.2, 'position std of a birth component', 'm', 0.0, 10.0,
+    rate: float = _f(0.5, 'expected number of objects appearing per second, anywhere',
+                     'objects/s', 0.0, 1e3, lo_open=True)
+    min_weight: float = _f(0.02, 'birth hypotheses lighter than this are dropped', '', 0.0, 1.0)
+    min_points: int = _f(2, 'fewest detections a new object is born from (a lone point is '
+                         'indistinguishable from clutter)', 'detections', 1, 1000)
+    velocity_std: float = _f(1.5, 'velocity std of a new object', 'm/s', 0.0, 50.0,
                              lo_open=True)
-    velocity_std: float = _f(1.5, 'velocity std of a birth component', 'm/s', 0.0, 50.0,
-                             lo_open=True)
-    dof: float = _f(12.0, 'inverse Wishart v of a birth component (> 6)', '', 6.0, 1e5,
+    dof: float = _f(8.0, 'inverse Wishart v of the birth extent prior (> 6)', '', 6.0, 1e5,
                     lo_open=True)
-    rate_shape: float = _f(4.0, 'Gamma alpha of a birth component (beta from its cell size)',
-                           '', 0.0, 1e5, lo_open=True)
-    min_semi_axis: float = _f(0.1, 'floor of a birth extent semi-axis', 'm', 0.0, 10.0,
-                              lo_open=True)
+    extent_semi_axis: float = _f(0.2, 'semi-axis of the birth extent prior mean (circle)', 'm',
+                                 0.0, 10.0, lo_open=True)
+    rate_shape: float = _f(1.0, 'Gamma alpha of the birth measurement rate', '', 0.0, 1e5,
+                           lo_open=True)
+    expected_rate: float = _f(10.0, 'mean detections per scan of a new object', 'detections',
+                              0.0, 1e5, lo_open=True)
+    weight: float = _f(0.1, 'weight of each birth-region component per scan', '', 0.0, 1.0,
+                       lo_open=True)
+    position_std: float = _f(0.5, 'position std of a birth-region component', 'm', 0.0, 100.0,
+                             lo_open=True)
     regions: list = _f([], 'birth regions, flat list of x, y, std triples', 'm')
 
 

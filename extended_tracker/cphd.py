@@ -22,7 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import gammaln, logsumexp
+from scipy.special import gammaln
+
+from .logmath import logsumexp, lse1, lse_rows
 
 NEG_INF = -np.inf
 
@@ -65,6 +67,9 @@ def log_esf(log_a: np.ndarray) -> np.ndarray:
     k = len(log_a)
     e = np.full(k + 1, NEG_INF)
     e[0] = 0.0
+    if k == 1:
+        e[1] = log_a[0]
+        return e
     for t in range(k):
         e[1:t + 2] = np.logaddexp(e[1:t + 2], e[0:t + 1] + log_a[t])
     return e
@@ -81,6 +86,8 @@ def log_esf_leave_one_out(log_a: np.ndarray) -> np.ndarray:
 
     """
     k = len(log_a)
+    if k == 1:
+        return np.zeros((1, 1))
     e = np.full((k, k + 1), NEG_INF)
     e[:, 0] = 0.0
     masked = np.broadcast_to(log_a, (k, k)).copy()
@@ -114,19 +121,33 @@ def _log_lambda_table(log_q0: float, n_max: int, j_max: int) -> np.ndarray:
     return np.where(valid, T, NEG_INF)
 
 
-def _log_lambda(T, log_pc_fact, log_A, k1, k2, log_e):
-    """
-    ``log Lambda(n)`` for ``n = 0..N_max`` (see module notes).
-
-    ``log_e`` holds ``log e_r`` of the singletons with nonzero ``a``, ``r = 0..len-1``;
-    singletons with ``a = 0`` only count as possible clutter (``k1`` includes them).
-    """
-    r = np.arange(len(log_e))
-    j = k2 + r
-    ok = j < T.shape[1]
-    r, j = r[ok], j[ok]
-    terms = T[:, j] + (log_pc_fact[k1 - r] + log_e[r])[None, :]
-    return log_A + logsumexp(terms, axis=1)
+def _partition_with_singletons(cells, cell_size, log_a, log_A, T, W1, log_pc_fact, lam_P,
+                               u0_terms, log_u_cell, p_idx):
+    """Lambda_P, its Upsilon_0 term and the per-cell Upsilon of one partition (in place)."""
+    single = cell_size[cells] == 1
+    s_cells = cells[single]
+    ns_cells = cells[~single]
+    k1, k2 = len(s_cells), len(ns_cells)
+    s_a = log_a[s_cells]
+    active = np.isfinite(s_a)
+    s_act = s_cells[active]
+    ka = len(s_act)
+    e = log_esf(s_a[active])                          # e_r, r = 0..ka
+    r = np.arange(ka + 1)
+    pc_r = log_pc_fact[k1 - r] + e
+    lam_P[p_idx] = log_A + lse_rows(T[:, k2 + r] + pc_r[None, :])
+    u0_terms[p_idx] = log_A + lse1(W1[k2 + r] + pc_r)
+    if k2:
+        # Lambda_{P minus W}, W non-singleton: A_P / a_W and one non-singleton fewer
+        u_ns = lse1(W1[k2 - 1 + r] + pc_r)
+        log_u_cell[ns_cells] = np.logaddexp(log_u_cell[ns_cells],
+                                            log_A - log_a[ns_cells] + u_ns)
+    # W an active singleton: one singleton fewer, leave-one-out symmetric functions
+    e_loo = log_esf_leave_one_out(s_a[active])        # (ka, ka), r = 0..ka-1
+    r2 = np.arange(ka)
+    B = W1[k2 + r2] + log_pc_fact[k1 - 1 - r2]
+    u_s = log_A + lse_rows(e_loo + B[None, :])
+    log_u_cell[s_act] = np.logaddexp(log_u_cell[s_act], u_s)
 
 
 def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_card,
@@ -186,61 +207,50 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     with np.errstate(divide='ignore'):
         log_n = np.log(n_idx)
 
-    def shifted(lam):          # log Lambda(n - 1) at n = 0..N_max (-inf at n = 0)
-        return np.concatenate([[NEG_INF], lam[:-1]])
+    # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
+    # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
+    W1 = logsumexp(log_n[1:, None] + log_card[1:, None] + T[:-1, :], axis=0)
+    n_part = len(partitions)
+    lam_P = np.full((n_part, n_max + 1), NEG_INF)
+    u0_terms = np.full(n_part, NEG_INF)
+    log_u_cell = np.full(n_cells, NEG_INF)
+    if n_part:
+        # flatten: one row per (partition, cell)
+        sizes = np.fromiter((len(p) for p in partitions), dtype=np.int64, count=n_part)
+        flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in partitions])
+        pid = np.repeat(np.arange(n_part), sizes)
+        single = cell_size[flat] == 1
+        la = log_a[flat]
+        k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
+        k2 = sizes - k1
+        n_active = np.bincount(pid, weights=single & np.isfinite(la),
+                               minlength=n_part).astype(np.int64)
+        log_A = np.bincount(pid, weights=np.where(single, 0.0, la), minlength=n_part)
+        # A non-singleton cell no object explains makes the partition impossible (clutter
+        # is singletons only): it contributes nothing.
+        feasible = np.isfinite(log_A)
+        # Partitions without active singletons: e = [1], everything in closed form.
+        easy = feasible & (n_active == 0)
+        if np.any(easy):
+            ep = np.flatnonzero(easy)
+            lam_P[ep] = log_A[ep, None] + T[:, k2[ep]].T + log_pc_fact[k1[ep], None]
+            u0_terms[ep] = log_A[ep] + W1[k2[ep]] + log_pc_fact[k1[ep]]
+            rows = easy[pid] & ~single
+            if np.any(rows):
+                pr = pid[rows]
+                vals = log_A[pr] - la[rows] + W1[k2[pr] - 1] + log_pc_fact[k1[pr]]
+                np.logaddexp.at(log_u_cell, flat[rows], vals)
+        for p_idx in np.flatnonzero(feasible & ~easy):
+            self_cells = np.asarray(partitions[p_idx])
+            _partition_with_singletons(self_cells, cell_size, log_a, float(log_A[p_idx]),
+                                       T, W1, log_pc_fact, lam_P, u0_terms, log_u_cell, p_idx)
 
-    lam_P = []                 # log Lambda_P(n) per partition
-    lam_PW = []                # per partition: (cells, log Lambda_{P minus W}(n)) rows
-    for cells in partitions:
-        cells = np.asarray(cells)
-        single = cell_size[cells] == 1
-        s_cells = cells[single]
-        ns_cells = cells[~single]
-        k1, k2 = len(s_cells), len(ns_cells)
-        log_A = float(np.sum(log_a[ns_cells]))
-        s_a = log_a[s_cells]
-        active = np.isfinite(s_a)
-        s_act = s_cells[active]
-        e = log_esf(s_a[active])
-        lam = _log_lambda(T, log_pc_fact, log_A, k1, k2, e) if np.isfinite(log_A) else \
-            np.full(n_max + 1, NEG_INF)
-        lam_P.append(lam)
-        rows_cells = []
-        rows = []
-        # removing a non-singleton cell W: A_P / a_W, one fewer non-singleton
-        for c in ns_cells:
-            if not np.isfinite(log_a[c]):
-                continue
-            log_A_w = float(np.sum(log_a[ns_cells[ns_cells != c]]))
-            rows_cells.append(c)
-            rows.append(_log_lambda(T, log_pc_fact, log_A_w, k1, k2 - 1, e))
-        # removing an active singleton: leave-one-out symmetric functions
-        if len(s_act) and np.isfinite(log_A):
-            e_loo = log_esf_leave_one_out(s_a[active])
-            for row, c in enumerate(s_act):
-                rows_cells.append(c)
-                rows.append(_log_lambda(T, log_pc_fact, log_A, k1 - 1, k2, e_loo[row]))
-        lam_PW.append((np.asarray(rows_cells, dtype=np.int64),
-                       np.array(rows).reshape(len(rows), n_max + 1)))
-
-    lam_P = np.array(lam_P).reshape(len(partitions), n_max + 1)
     per_partition = logsumexp(lam_P + log_card[None, :], axis=1)
     log_L = logsumexp(per_partition)
     log_part_weight = per_partition - log_L
-    # Upsilon_0 = sum_n n p(n) sum_P Lambda_P(n-1) / (Nbar L)
-    lam_sum_shift = shifted(logsumexp(lam_P, axis=0)) if len(partitions) else \
-        np.full(n_max + 1, NEG_INF)
-    log_u0 = logsumexp(log_n + log_card + lam_sum_shift) - log_nbar - log_L
+    log_u0 = logsumexp(u0_terms) - log_nbar - log_L
+    log_u_cell = log_u_cell - log_nbar - log_L
     log_card_post = log_card + logsumexp(lam_P, axis=0) - log_L
-
-    # Upsilon_{P,W}, summed over the partitions holding W
-    log_u_cell = np.full(n_cells, NEG_INF)
-    for cells_w, rows in lam_PW:
-        if not len(cells_w):
-            continue
-        rows_shift = np.concatenate([np.full((len(rows), 1), NEG_INF), rows[:, :-1]], axis=1)
-        u = logsumexp(log_n[None, :] + log_card[None, :] + rows_shift, axis=1) - log_nbar - log_L
-        log_u_cell[cells_w] = np.logaddexp(log_u_cell[cells_w], u)
 
     log_w_missed = log_w + log_qd + log_u0
     log_w_det = log_w[:, None] + log_g - cell_log_c[None, :] + log_u_cell[None, :]

@@ -1,0 +1,309 @@
+"""
+Measurement partitioning: distance, sub- and prediction partitioning, with caps.
+
+A partition is returned as a label array over the detections; :class:`PartitionSet`
+turns a list of them into distinct cells (index arrays) and partitions as lists of cell
+indices, so that each cell's update is computed once however many partitions hold it.
+
+Notes
+-----
+Granström, Lundquist & Orguner, IEEE TAES 48(4), 2012, section IV. Distance partitioning
+for every distinct threshold in ``[d_min, d_max]`` equals cutting the single-linkage
+dendrogram at each merge height in that range; the merges are the edges of the minimum
+spanning tree of the radius-``d_max`` graph, so all partitions come from one MST.
+
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import minimum_spanning_tree
+from scipy.spatial import cKDTree
+
+
+@dataclass
+class PartitionSet:
+    """
+    Distinct cells and the partitions built from them.
+
+    Attributes
+    ----------
+    cells : list of int arrays
+        Sorted detection indices of each distinct cell.
+    partitions : list of int arrays
+        Each partition as indices into ``cells``; together they cover every detection once.
+    capped_partitions, capped_cells : int
+        How many partitions or cells the caps dropped.
+
+    """
+
+    cells: list = field(default_factory=list)
+    partitions: list = field(default_factory=list)
+    capped_partitions: int = 0
+    capped_cells: int = 0
+    coarse_labels: np.ndarray | None = None
+    _index: dict = field(default_factory=dict)
+    _seen: set = field(default_factory=set)
+
+    def add(self, labels: np.ndarray, max_partitions: int, max_cells: int) -> bool:
+        """Add the partition given by ``labels`` unless it is a duplicate or over a cap."""
+        order = np.argsort(labels, kind='stable')      # groups, each in ascending index
+        bounds = np.flatnonzero(np.diff(labels[order])) + 1
+        starts = np.concatenate([[0], bounds]).tolist()
+        ends = np.concatenate([bounds, [len(order)]]).tolist()
+        ids = []
+        new_cells = []
+        for a, b in zip(starts, ends):
+            group = order[a:b]
+            # (first index, size) narrows the search; equality of indices decides
+            key = (int(group[0]), b - a)
+            found = None
+            for idx in self._index.get(key, ()):
+                if np.array_equal(self.cells[idx], group):
+                    found = idx
+                    break
+            if found is None:
+                new_cells.append((key, group))
+                found = -len(new_cells)               # placeholder until accepted
+            ids.append(found)
+        sig = tuple(sorted(i for i in ids if i >= 0)) + (len(new_cells),)
+        if not new_cells and sig in self._seen:
+            return False
+        if len(self.partitions) >= max_partitions:
+            self.capped_partitions += 1
+            return False
+        if len(self.cells) + len(new_cells) > max_cells:
+            self.capped_cells += len(new_cells)
+            return False
+        for j, (key, group) in enumerate(new_cells):
+            idx = len(self.cells)
+            self.cells.append(group)
+            self._index.setdefault(key, []).append(idx)
+            ids[ids.index(-(j + 1))] = idx
+        self._seen.add(tuple(sorted(ids)) + (0,))
+        self.partitions.append(np.array(ids, dtype=np.int64))
+        return True
+
+
+def _mst_edges(points: np.ndarray, d_max: float):
+    """Edges (i, j, length) of the minimum spanning forest of the radius-``d_max`` graph."""
+    n = len(points)
+    tree = cKDTree(points)
+    pairs = tree.query_pairs(d_max, output_type='ndarray')
+    if not len(pairs):
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+    d = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
+    # zero-length edges (repeated points) would vanish from a sparse matrix: lift them
+    d = np.maximum(d, 1e-12)
+    graph = coo_matrix((d, (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
+    mst = minimum_spanning_tree(graph).tocoo()
+    return mst.row, mst.col, mst.data
+
+
+def _roots(parent: np.ndarray) -> np.ndarray:
+    """Root of every node of a union-find forest by pointer jumping (vectorised)."""
+    labels = parent.copy()
+    while True:
+        nxt = labels[labels]
+        if np.array_equal(nxt, labels):
+            return labels
+        labels = nxt
+
+
+def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
+                        max_thresholds: int) -> tuple[list[np.ndarray], int]:
+    """
+    Label arrays of distance partitioning for all distinct thresholds in ``[d_min, d_max]``.
+
+    Returns
+    -------
+    partitions : list of (m,) int arrays
+        From the finest (threshold ``d_min``) to the coarsest; a label is the smallest
+        detection index of its cell.
+    dropped : int
+        Distinct thresholds left out by ``max_thresholds`` (evenly thinned).
+
+    Notes
+    -----
+    The MST edges are merged in ascending length with a union-find and the labels read at
+    each kept threshold.
+
+    """
+    n = len(points)
+    if n == 0:
+        return [], 0
+    rows, cols, length = _mst_edges(points, d_max)
+    order = np.argsort(length, kind='stable')
+    rows, cols, length = rows[order], cols[order], length[order]
+    # thresholds: d_min, then every distinct MST edge length in (d_min, d_max]
+    heights = np.unique(length[(length > d_min) & (length <= d_max)])
+    thresholds = np.concatenate([[d_min], heights])
+    dropped = 0
+    if len(thresholds) > max_thresholds:
+        keep = np.unique(np.round(np.linspace(0, len(thresholds) - 1,
+                                              max_thresholds)).astype(int))
+        dropped = len(thresholds) - len(keep)
+        thresholds = thresholds[keep]
+    parent = np.arange(n)
+    out = []
+    done = 0
+    rows_l, cols_l = rows.tolist(), cols.tolist()
+    for t in thresholds:
+        stop = int(np.searchsorted(length, t, side='right'))
+        if done < stop:
+            for a, b in zip(rows_l[done:stop], cols_l[done:stop]):
+                ra = a
+                while parent[ra] != ra:
+                    ra = parent[ra]
+                rb = b
+                while parent[rb] != rb:
+                    rb = parent[rb]
+                # MST edges always join two different trees; the smaller index is the root
+                parent[max(ra, rb)] = min(ra, rb)
+            parent = _roots(parent)
+            done = stop
+        out.append(parent.copy())
+    return out, dropped
+
+
+def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
+              init: np.ndarray | None = None) -> np.ndarray:
+    """
+    Deterministic k-means (k-means++ seeding unless ``init`` centres are given).
+
+    Returns the label of each point; empty clusters are dropped from the labels.
+    """
+    n = len(points)
+    if k >= n:
+        return np.arange(n)
+    rng = np.random.default_rng(seed)
+    if init is None:
+        centres = [points[rng.integers(n)]]
+        for _ in range(1, k):
+            d2 = np.min(((points[:, None, :] - np.array(centres)[None]) ** 2).sum(-1), axis=1)
+            total = d2.sum()
+            if total <= 0:
+                break
+            centres.append(points[rng.choice(n, p=d2 / total)])
+        centres = np.array(centres)
+    else:
+        centres = np.asarray(init, dtype=float).copy()
+    labels = np.zeros(n, dtype=np.int64)
+    for _ in range(iters):
+        d2 = ((points[:, None, :] - centres[None]) ** 2).sum(-1)
+        new = np.argmin(d2, axis=1)
+        if _ and np.array_equal(new, labels):
+            break
+        labels = new
+        for j in range(len(centres)):
+            sel = labels == j
+            if np.any(sel):
+                centres[j] = points[sel].mean(axis=0)
+    return labels
+
+
+def expected_object_count(n_points: int, rate: float, k_max: int) -> int:
+    """
+    Most likely number of objects ``k`` behind ``n_points`` detections, each at ``rate``.
+
+    Notes
+    -----
+    ``argmax_k Poisson(n; k rate)`` over ``k = 1..k_max`` (Granström et al. 2012, IV-C).
+    """
+    if rate <= 0:
+        return 1
+    k = np.arange(1, k_max + 1)
+    mean = k * rate
+    log_p = n_points * np.log(mean) - mean
+    return int(k[np.argmax(log_p)])
+
+
+def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> PartitionSet:
+    """
+    All partitions of one scan's detections.
+
+    Parameters
+    ----------
+    points : (m, 2) array
+        Detections.
+    cfg : PartitionConfig
+        Thresholds, caps and switches.
+    predicted : dict, optional
+        Confident predicted objects for sub- and prediction partitioning: ``centre``
+        (k, 2), ``gate_inv`` (k, 2, 2) inverse gate covariances, ``gate`` threshold,
+        ``rate`` (k,) expected detections per scan.
+    seed : int
+        Seed of k-means++ (deterministic results).
+
+    """
+    pset = PartitionSet()
+    m = len(points)
+    if m == 0:
+        pset.partitions.append(np.zeros(0, dtype=np.int64))
+        return pset
+    dist, dropped = distance_partitions(points, cfg.d_min, cfg.d_max, cfg.max_partitions)
+    pset.capped_partitions += dropped
+    pset.coarse_labels = dist[-1]
+    # prediction partitioning first: under a cap it is the most informative one
+    pred_labels = None
+    if cfg.prediction_partition and predicted is not None and len(predicted['centre']):
+        pred_labels = prediction_partition(points, predicted, dist[len(dist) // 2])
+        pset.add(pred_labels, cfg.max_partitions, cfg.max_cells)
+    for labels in dist:
+        pset.add(labels, cfg.max_partitions, cfg.max_cells)
+    if cfg.sub_partition:
+        _sub_partitions(points, pset, dist, predicted, cfg, seed)
+    return pset
+
+
+def prediction_partition(points, predicted, fallback_labels):
+    """
+    Detections in a confident object's gate go to the nearest such object.
+
+    The others keep their cells of ``fallback_labels`` (a middle distance partition).
+    """
+    e = points[:, None, :] - predicted['centre'][None, :, :]
+    Gi = predicted['gate_inv']
+    d2 = (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
+          + Gi[None, :, 1, 1] * e[..., 1] ** 2)
+    best = np.argmin(d2, axis=1)
+    inside = d2[np.arange(len(points)), best] < predicted['gate']
+    labels = len(predicted['centre']) + np.asarray(fallback_labels, dtype=np.int64)
+    labels[inside] = best[inside]
+    return labels
+
+
+def _sub_partitions(points, pset, dist, predicted, cfg, seed):
+    """Split cells that likely hold several objects, one new partition per split cell."""
+    if predicted is None or not len(predicted['centre']) or not dist:
+        return
+    base = dist[len(dist) // 2]                      # a middle distance partition
+    centre = predicted['centre']
+    rates = predicted['rate']
+    for lab in np.unique(base):
+        idx = np.flatnonzero(base == lab)
+        if len(idx) < 4:
+            continue
+        zbar = points[idx].mean(axis=0)
+        e = zbar[None, :] - centre
+        Gi = predicted['gate_inv']
+        d2 = (Gi[:, 0, 0] * e[:, 0] ** 2 + 2 * Gi[:, 0, 1] * e[:, 0] * e[:, 1]
+              + Gi[:, 1, 1] * e[:, 1] ** 2)
+        near = d2 < predicted['gate']
+        if not np.any(near):
+            continue
+        # objects whose predicted centre falls among the cell's points count too
+        k_pred = int(np.sum(near))
+        k_rate = expected_object_count(len(idx), float(np.median(rates[near])),
+                                       cfg.max_sub_objects)
+        k = min(max(k_pred, k_rate), cfg.max_sub_objects, len(idx))
+        if k < 2:
+            continue
+        init = centre[near][:k] if k_pred >= k else None
+        sub = kmeans_pp(points[idx], k, seed=seed, init=init)
+        labels = base.copy()
+        labels[idx] = base.max() + 1 + sub
+        pset.add(labels, cfg.max_partitions, cfg.max_cells)

@@ -1,0 +1,469 @@
+"""
+One filter step of the GGIW-CPHD (or PHD) tracker on Cartesian detections.
+
+The state is data (:class:`FilterState`), passed in and returned. The laser front end and
+the per-scan pipeline (:mod:`extended_tracker.pipeline`) call :func:`predict_state` and
+:func:`update_state`; synthetic tests may call :func:`filter_step` directly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+
+from .config import TrackerConfig
+from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
+from .ggiw import (
+    cell_stats, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict, update_pairs,
+)
+from .partition import build_partitions
+from .reduction import reduce_mixture
+
+NEG_INF = -np.inf
+
+
+@dataclass(frozen=True)
+class Estimates:
+    """
+    Reported objects of one scan, arrays with a leading object axis of length ``k``.
+
+    Attributes
+    ----------
+    label : (k,) int64
+    existence : (k,) weight of the label, clipped to [0, 1]
+    m : (k, 4) kinematic mean; P : (k, 4, 4) its covariance
+    X : (k, 2, 2) expected extent matrix (m^2)
+    rate : (k,) expected detections per scan
+    num_detections : (k,) detections that updated the label this scan
+    visibility : (k,) visible fraction used for p_D (1 where not computed)
+
+    """
+
+    label: np.ndarray
+    existence: np.ndarray
+    m: np.ndarray
+    P: np.ndarray
+    X: np.ndarray
+    rate: np.ndarray
+    num_detections: np.ndarray
+    visibility: np.ndarray
+
+    def __len__(self):
+        return int(self.label.shape[0])
+
+    def axes(self):
+        """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""
+        a = self.X[:, 0, 0]
+        b = self.X[:, 0, 1]
+        c = self.X[:, 1, 1]
+        half_tr = 0.5 * (a + c)
+        root = np.sqrt(np.maximum(0.25 * (a - c) ** 2 + b * b, 0.0))
+        lam1 = half_tr + root
+        lam2 = np.maximum(half_tr - root, 0.0)
+        yaw = 0.5 * np.arctan2(2 * b, a - c)
+        return np.sqrt(lam1), np.sqrt(lam2), yaw
+
+    def rectangle(self):
+        """
+        Length and width of the oriented rectangle with the ellipse's second moments.
+
+        Notes
+        -----
+        A filled ellipse of semi-axis ``a`` has second moment ``a^2/4`` along it; a filled
+        rectangle of side ``L`` has ``L^2/12``; equal moments give ``L = sqrt(3) a``.
+        """
+        major, minor, _ = self.axes()
+        return np.sqrt(3.0) * major, np.sqrt(3.0) * minor
+
+    @staticmethod
+    def empty():
+        """Return estimates with no object."""
+        return Estimates(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 4)),
+                         np.zeros((0, 4, 4)), np.zeros((0, 2, 2)), np.zeros(0),
+                         np.zeros(0, np.int64), np.zeros(0))
+
+
+@dataclass(frozen=True)
+class FilterState:
+    """
+    Everything the filter carries from one scan to the next.
+
+    Attributes
+    ----------
+    mixture : Mixture
+        Posterior GGIW mixture.
+    log_card : (N_max + 1,) array
+        Posterior cardinality pmf (log).
+    next_label : int
+        Next unused track label.
+    reported : (r,) int64 array
+        Labels reported in the last scan; ``reported_scans`` counts consecutive scans.
+
+    """
+
+    mixture: Mixture
+    log_card: np.ndarray
+    next_label: int = 1
+    reported: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    reported_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    dt: float = 0.1
+
+    @staticmethod
+    def initial(cfg: TrackerConfig) -> 'FilterState':
+        """An empty scene: no components, cardinality certainly zero."""
+        log_card = np.full(cfg.model.n_max + 1, NEG_INF)
+        log_card[0] = 0.0
+        return FilterState(Mixture.empty(), log_card)
+
+    def confirmed_labels(self, scans: int) -> np.ndarray:
+        """Labels reported for at least ``scans`` consecutive scans."""
+        return self.reported[self.reported_scans >= scans]
+
+
+@dataclass
+class StepDiagnostics:
+    """Counts of one filter step (filled by update_state)."""
+
+    detections: int = 0
+    partitions: int = 0
+    cells: int = 0
+    pairs: int = 0
+    components: int = 0
+    births: int = 0
+    capped_partitions: int = 0
+    capped_cells: int = 0
+    capped_components: int = 0
+
+
+def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
+    """Sensor noise covariance R (m^2)."""
+    return cfg.model.sigma_range ** 2 * np.eye(2)
+
+
+def region_births(cfg: TrackerConfig, first_label: int) -> Mixture:
+    """Birth components of the configured birth regions (x, y, std triples)."""
+    reg = np.asarray(cfg.birth.regions, dtype=float).reshape(-1, 3)
+    k = len(reg)
+    if not k:
+        return Mixture.empty()
+    b = cfg.birth
+    P = np.zeros((k, 4, 4))
+    P[:, 0, 0] = P[:, 1, 1] = reg[:, 2] ** 2
+    P[:, 2, 2] = P[:, 3, 3] = b.velocity_std ** 2
+    m = np.zeros((k, 4))
+    m[:, :2] = reg[:, :2]
+    X0 = (b.extent_semi_axis ** 2) * np.eye(2)
+    v = np.full(k, b.dof)
+    V = np.broadcast_to((b.dof - IW_OFFSET) * X0, (k, 2, 2)).copy()
+    alpha = np.full(k, b.rate_shape)
+    return Mixture(np.full(k, b.weight), alpha, alpha / b.expected_rate, m, P, v, V,
+                   np.arange(first_label, first_label + k, dtype=np.int64))
+
+
+def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterState:
+    """
+    Predict the mixture and cardinality ``dt`` seconds ahead; add region births.
+
+    The cardinality prediction includes the Poisson birth of the region components and of
+    the uniform birth intensity that :func:`update_state` evaluates per cell.
+    """
+    mc = cfg.model
+    survivors = predict(state.mixture, dt, mc.p_survival, mc.sigma_accel, mc.tau_rate,
+                        mc.tau_extent)
+    regions = region_births(cfg, state.next_label)
+    next_label = state.next_label + len(regions)
+    p_s = mc.p_survival ** dt
+    birth_mean = float(np.sum(regions.w)) + birth_intensity(cfg, dt)
+    log_card = predict_cardinality(state.log_card, p_s, birth_mean)
+    return replace(state, mixture=Mixture.concat([survivors, regions]), log_card=log_card,
+                   next_label=next_label, dt=dt)
+
+
+def birth_intensity(cfg: TrackerConfig, dt: float) -> float:
+    """Expected number of objects appearing anywhere in ``dt`` seconds."""
+    return cfg.birth.rate * max(dt, 1e-3)
+
+
+def confident_predictions(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
+    """Centres, gates and rates of the heaviest component of each heavy label."""
+    if not len(mix):
+        return None
+    order = np.argsort(-mix.w, kind='stable')
+    _, first = np.unique(mix.label[order], return_index=True)
+    best = order[first]
+    best = best[mix.w[best] >= min_weight]
+    if not len(best):
+        return None
+    X = mix.expected_extent()[best]
+    G = mix.P[best, :2, :2] + X + sensor_noise(cfg)
+    return {
+        'centre': mix.m[best, :2],
+        'gate_inv': inv2(G),
+        'gate': gate_threshold(cfg),
+        'rate': mix.expected_rate()[best],
+    }
+
+
+def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
+    """
+    One GGIW per cell standing for the uniform birth intensity at that cell.
+
+    Notes
+    -----
+    The birth intensity is uniform in position over the clutter area ``A``. For a cell
+    ``W`` its position integral is evaluated with a component centred at the cell mean whose
+    position covariance ``s^2 I`` has the uniform's density at its centre,
+    ``1 / (2 pi s^2) = 1 / A``; everything else (velocity, rate, extent) is the birth prior.
+    The extent prior mean is the floor semi-axis circle; its few degrees of freedom let the
+    cell's own scatter decide (same ``rho`` as the update: trap 2).
+    """
+    b = cfg.birth
+    k = len(stats.n)
+    P = np.zeros((k, 4, 4))
+    P[:, 0, 0] = P[:, 1, 1] = area / (2.0 * np.pi)
+    P[:, 2, 2] = P[:, 3, 3] = b.velocity_std ** 2
+    m = np.zeros((k, 4))
+    m[:, :2] = stats.mean
+    X0 = (b.extent_semi_axis ** 2) * np.eye(2)
+    v = np.full(k, b.dof)
+    V = np.broadcast_to((b.dof - IW_OFFSET) * X0, (k, 2, 2)).copy()
+    alpha = np.full(k, b.rate_shape)
+    beta = alpha / b.expected_rate
+    return Mixture(np.ones(k), alpha, beta, m, P, v, V, np.zeros(k, dtype=np.int64))
+
+
+def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: TrackerConfig,
+                 rate_scale: np.ndarray | None = None, clutter_area: float | None = None,
+                 visibility: np.ndarray | None = None):
+    """
+    Multi-object update of a predicted state with one scan's detections.
+
+    Parameters
+    ----------
+    state : FilterState
+        Output of :func:`predict_state`.
+    points : (m, 2) array
+        Detections (m).
+    p_d : (n,) array
+        Probability of detection of each predicted component.
+    cfg : TrackerConfig
+    rate_scale : (n,) array, optional
+        Factor on each component's expected detections this scan (visible fraction).
+    clutter_area : float, optional
+        Area (m^2) clutter and births are spread over; ``model.surveillance_area`` if omitted.
+    visibility : (n,) array, optional
+        Visible fraction of each component, carried into the estimates.
+
+    Returns
+    -------
+    state : FilterState
+    estimates : Estimates
+    diagnostics : StepDiagnostics
+
+    Notes
+    -----
+    The components of the update are the predicted mixture plus one row for the uniform
+    birth intensity (weight ``birth.rate * dt``); its detected hypotheses become new tracks,
+    so birth is driven by the cells the existing tracks explain poorly. All new components
+    born from cells of one coarse distance cluster share a label, so that the many
+    overlapping cells of one new object merge into one track.
+
+    """
+    mc = cfg.model
+    mix = state.mixture
+    n_comp = len(mix)
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    diag = StepDiagnostics(detections=len(points))
+    R = sensor_noise(cfg)
+    area = clutter_area if clutter_area else mc.surveillance_area
+    p_d = np.asarray(p_d, dtype=float).reshape(n_comp)
+    if rate_scale is not None:
+        rate_scale = np.clip(np.asarray(rate_scale, dtype=float), 1e-3, None)
+    if visibility is None:
+        visibility = np.ones(n_comp)
+
+    pset = build_partitions(points, cfg.partition, confident_predictions(mix, cfg))
+    diag.partitions = len(pset.partitions)
+    diag.cells = len(pset.cells)
+    diag.capped_partitions = pset.capped_partitions
+    diag.capped_cells = pset.capped_cells
+    stats = cell_stats(points, pset.cells)
+    n_cells = len(pset.cells)
+
+    # existing components: gated (component, cell) pairs
+    comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg))
+    keep = p_d[comp] > 0
+    comp, cell = comp[keep], cell[keep]
+    diag.pairs = len(comp)
+    upd = update_pairs(mix, comp, stats, cell, mc.rho, R, rate_scale)
+    # birth row: every cell
+    birth_prior = _birth_prior(stats, cfg, area)
+    bcell = np.arange(n_cells)
+    bupd = update_pairs(birth_prior, bcell, stats, bcell, mc.rho, R)
+    log_pd0 = np.log(cfg.detection.p_d0)
+
+    log_g = np.full((n_comp + 1, n_cells), NEG_INF)
+    log_g[comp, cell] = np.log(p_d[comp]) + upd.log_lik
+    log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + bupd.log_lik,
+                                NEG_INF)
+    mu_b = birth_intensity(cfg, state.dt)
+    with np.errstate(divide='ignore'):
+        log_w = np.concatenate([np.log(mix.w), [np.log(mu_b)]])
+        log_qd_b = np.log1p(cfg.detection.p_d0 * np.expm1(
+            cfg.birth.rate_shape * (np.log(cfg.birth.rate_shape / cfg.birth.expected_rate)
+                                    - np.log1p(cfg.birth.rate_shape / cfg.birth.expected_rate))))
+        log_qd = np.concatenate([log_miss_factor(mix, p_d, rate_scale), [log_qd_b]])
+    cell_log_c = -stats.n * np.log(area)
+    if mc.mode == 'cphd':
+        k_most = max((len(p) for p in pset.partitions), default=0)
+        out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
+                          state.log_card, poisson_log_pmf(mc.clutter_rate, k_most + 1))
+    else:
+        out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
+                         mc.clutter_rate, mc.n_max)
+
+    # posterior mixture: missed components, (component, cell) updates, births
+    prune = cfg.reduction.prune_weight
+    w_missed = np.exp(out.log_w_missed[:n_comp])
+    w_det = np.exp(out.log_w_detected[comp, cell])
+    sel = w_det >= prune
+    detected = Mixture(w_det[sel], upd.alpha[sel], upd.beta[sel], upd.m[sel], upd.P[sel],
+                       upd.v[sel], upd.V[sel], mix.label[comp[sel]])
+    w_birth = np.exp(out.log_w_detected[n_comp, :])
+    bsel = np.flatnonzero(w_birth >= cfg.birth.min_weight)
+    born, next_label = _label_births(pset, bsel, state.next_label)
+    births = Mixture(w_birth[bsel], bupd.alpha[bsel], bupd.beta[bsel], bupd.m[bsel],
+                     bupd.P[bsel], bupd.v[bsel], bupd.V[bsel], born)
+    diag.births = len(np.unique(born))
+    posterior = Mixture.concat([mix.with_weights(w_missed), detected, births])
+
+    n_det = _detections_per_label(mix, comp, cell, w_det, w_missed, stats)
+    vis_of = {}
+    for i in range(n_comp):
+        vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
+
+    reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
+                                     cfg.reduction.max_components)
+    reduced, next_label = _split_labels(reduced, cfg.reduction.split_weight, next_label)
+    diag.capped_components = capped
+    diag.components = len(reduced)
+
+    new_state = replace(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
+    estimates = extract(new_state, cfg, n_det, vis_of)
+    prev = dict(zip(state.reported.tolist(), state.reported_scans.tolist()))
+    scans = np.array([prev.get(int(lab), 0) + 1 for lab in estimates.label], dtype=np.int64)
+    new_state = replace(new_state, reported=estimates.label.copy(), reported_scans=scans)
+    return new_state, estimates, diag
+
+
+def gate_threshold(cfg: TrackerConfig) -> float:
+    """Squared Mahalanobis gate of (component, cell) pairs (chi-square, 2 dof)."""
+    # chi2.ppf(p, 2) = -2 log(1 - p)
+    return float(-2.0 * np.log1p(-cfg.partition.gate_probability))
+
+
+def _label_births(pset, birth_cells, next_label):
+    """Labels of new components: one per coarse distance cluster (threshold d_max)."""
+    if not len(birth_cells):
+        return np.zeros(0, dtype=np.int64), next_label
+    cluster = pset.coarse_labels[[pset.cells[c][0] for c in birth_cells]]
+    uniq, inverse = np.unique(cluster, return_inverse=True)
+    return (next_label + inverse).astype(np.int64), next_label + len(uniq)
+
+
+def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
+    """Size of each label's heaviest detected cell, where detection outweighs a miss."""
+    out = {}
+    if not len(comp):
+        return out
+    lab_pairs = mix.label[comp]
+    for lab in np.unique(lab_pairs):
+        sel = lab_pairs == lab
+        if w_det[sel].sum() > w_missed[mix.label == lab].sum():
+            out[int(lab)] = int(stats.n[cell[sel][np.argmax(w_det[sel])]])
+    return out
+
+
+def _split_labels(mix: Mixture, split_weight: float, next_label: int):
+    """
+    Give a fresh label to a heavy component that shares its label with a heavier one.
+
+    After merging, two components of one label are far apart: two objects now stand where
+    one track was (two pedestrians walking side by side separating). The heaviest keeps the
+    label.
+    """
+    if not len(mix):
+        return mix, next_label
+    label = mix.label.copy()
+    order = np.argsort(-mix.w, kind='stable')
+    seen = set()
+    for i in order:
+        lab = int(label[i])
+        if lab in seen:
+            if mix.w[i] >= split_weight:
+                label[i] = next_label
+                next_label += 1
+        else:
+            seen.add(lab)
+    return replace(mix, label=label), next_label
+
+
+def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None) -> Estimates:
+    """
+    Report the heaviest labels: ``MAP(p'(n))`` of them in CPHD mode, those heavier than
+    ``extraction.phd_threshold`` in PHD mode; never one lighter than ``min_existence``.
+
+    Each label is reported by its heaviest component.
+    """
+    mix = state.mixture
+    if not len(mix):
+        return Estimates.empty()
+    labels, inverse = np.unique(mix.label, return_inverse=True)
+    weight = np.bincount(inverse, weights=mix.w)
+    order = np.argsort(-weight, kind='stable')
+    ex = cfg.extraction
+    if cfg.model.mode == 'cphd':
+        n_hat = int(np.argmax(state.log_card))
+        chosen = order[:n_hat]
+    else:
+        chosen = order[weight[order] > ex.phd_threshold]
+    chosen = chosen[weight[chosen] >= ex.min_existence]
+    chosen = np.sort(labels[chosen])
+    if not len(chosen):
+        return Estimates.empty()
+    best = []
+    for lab in chosen:
+        idx = np.flatnonzero(mix.label == lab)
+        best.append(idx[np.argmax(mix.w[idx])])
+    best = np.array(best)
+    lab_w = weight[np.searchsorted(labels, chosen)]
+    n_det = n_det or {}
+    visibility = visibility or {}
+    return Estimates(
+        label=chosen.astype(np.int64),
+        existence=np.clip(lab_w, 0.0, 1.0),
+        m=mix.m[best],
+        P=mix.P[best],
+        X=mix.expected_extent()[best],
+        rate=mix.expected_rate()[best],
+        num_detections=np.array([n_det.get(int(x), 0) for x in chosen], dtype=np.int64),
+        visibility=np.array([visibility.get(int(x), 1.0) for x in chosen]),
+    )
+
+
+def filter_step(state: FilterState, points: np.ndarray, dt: float, cfg: TrackerConfig,
+                p_d=None, clutter_area=None):
+    """
+    Predict, update, reduce and extract with a constant or given p_D (synthetic use).
+
+    ``p_d`` may be a callable taking the predicted mixture and returning per-component
+    probabilities; by default ``detection.p_d0`` for every component.
+    """
+    pred = predict_state(state, dt, cfg)
+    if callable(p_d):
+        pd = np.asarray(p_d(pred.mixture), dtype=float)
+    else:
+        pd = np.full(len(pred.mixture), cfg.detection.p_d0 if p_d is None else p_d)
+    return update_state(pred, points, pd, cfg, clutter_area=clutter_area)
