@@ -1,0 +1,148 @@
+"""Property tests (Hypothesis, deterministic profile) of the filter core's invariants."""
+
+import numpy as np
+from hypothesis import given, strategies as st
+
+from extended_tracker.config import TrackerConfig
+from extended_tracker.cphd import predict_cardinality
+from extended_tracker.ggiw import cell_stats, IW_OFFSET, Mixture, predict, update_pairs
+from extended_tracker.partition import build_partitions, distance_partitions
+from extended_tracker.reduction import merge_components, reduce_mixture
+from extended_tracker.tracker import FilterState, filter_step
+
+CFG = TrackerConfig()
+
+
+def is_spd(A):
+    A = np.asarray(A)
+    sym = np.allclose(A, np.swapaxes(A, -1, -2), rtol=1e-9, atol=1e-12)
+    return sym and bool(np.all(np.linalg.eigvalsh(A) > 0))
+
+
+@st.composite
+def mixtures(draw, max_k=5):
+    k = draw(st.integers(1, max_k))
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    m = np.column_stack([rng.uniform(-5, 5, (k, 2)), rng.normal(0, 1, (k, 2))])
+    A = rng.normal(0, 0.5, (k, 4, 4))
+    P = A @ np.swapaxes(A, 1, 2) + 1e-3 * np.eye(4)
+    v = rng.uniform(6.5, 200, k)
+    B = rng.normal(0, 0.4, (k, 2, 2))
+    X = B @ np.swapaxes(B, 1, 2) + 1e-3 * np.eye(2)
+    V = X * (v - IW_OFFSET)[:, None, None]
+    return Mixture(rng.uniform(0.01, 1.0, k), rng.uniform(0.1, 50, k), rng.uniform(0.05, 10, k),
+                   m, P, v, V, rng.integers(0, 3, k))
+
+
+@st.composite
+def point_sets(draw, max_n=40):
+    n = draw(st.integers(0, max_n))
+    seed = draw(st.integers(0, 2**31 - 1))
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(-4, 4, (3, 2))
+    pts = centres[rng.integers(0, 3, n)] + rng.normal(0, draw(st.sampled_from([0.02, 0.2, 1.0])),
+                                                     (n, 2))
+    if n > 3 and draw(st.booleans()):
+        pts[1] = pts[0]                                # a repeated detection
+    return pts
+
+
+@given(mixtures(), point_sets(), st.floats(0.0, 2.0))
+def test_predict_and_update_keep_parameters_valid(mix, pts, dt):
+    pred = predict(mix, dt, 0.99, 2.0, 2.0, 2.0)
+    assert is_spd(pred.P) and is_spd(pred.V)
+    assert np.all(pred.v > IW_OFFSET) and np.all(pred.alpha > 0) and np.all(pred.beta > 0)
+    if len(pts) == 0:
+        return
+    cells = [np.arange(len(pts))]
+    if len(pts) > 2:
+        cells = [np.arange(len(pts) // 2), np.arange(len(pts) // 2, len(pts))]
+    stats = cell_stats(pts, cells)
+    comp = np.repeat(np.arange(len(pred)), len(cells))
+    cell = np.tile(np.arange(len(cells)), len(pred))
+    out = update_pairs(pred, comp, stats, cell, 0.25, 0.03 ** 2 * np.eye(2))
+    assert np.all(np.isfinite(out.log_lik))
+    assert is_spd(out.P) and is_spd(out.V)
+    assert np.all(out.v > IW_OFFSET) and np.all(out.alpha > 0) and np.all(out.beta > 0)
+
+
+@given(point_sets(), st.floats(0.0, 0.5), st.floats(0.05, 2.0))
+def test_every_partition_covers_each_detection_once(pts, d_min, span):
+    from dataclasses import replace
+
+    cfg = replace(CFG.partition, d_min=d_min, d_max=d_min + span)
+    pset = build_partitions(pts, cfg)
+    assert pset.partitions
+    for part in pset.partitions:
+        members = np.concatenate([pset.cells[c] for c in part]) if len(part) else np.zeros(0)
+        assert sorted(members.tolist()) == list(range(len(pts)))
+    # cells are distinct
+    keys = {tuple(c.tolist()) for c in pset.cells}
+    assert len(keys) == len(pset.cells)
+
+
+@given(point_sets(max_n=25), st.floats(0.05, 1.5))
+def test_distance_partition_matches_definition(pts, d):
+    """Threshold partition == connected components of 'closer than d' (checked by BFS)."""
+    labels, _ = distance_partitions(pts, d, d, 1)
+    if not len(pts):
+        return
+    lab = labels[0]
+    n = len(pts)
+    dist = np.linalg.norm(pts[:, None] - pts[None], axis=2)
+    seen = -np.ones(n, int)
+    comp = 0
+    for s in range(n):
+        if seen[s] >= 0:
+            continue
+        stack = [s]
+        seen[s] = comp
+        while stack:
+            i = stack.pop()
+            for j in np.flatnonzero((dist[i] <= d) & (seen < 0)):
+                seen[j] = comp
+                stack.append(j)
+        comp += 1
+    # same grouping up to renaming
+    pairs = {(a, b) for a, b in zip(lab.tolist(), seen.tolist())}
+    assert len(pairs) == len(set(lab.tolist())) == len(set(seen.tolist()))
+
+
+@given(mixtures(max_k=6))
+def test_merging_preserves_weight_and_validity(mix):
+    idx = np.arange(len(mix))
+    W, a, b, m, P, v, V, lab = merge_components(mix, idx)
+    assert np.isclose(W, mix.w.sum(), rtol=1e-12)
+    assert a > 0 and b > 0 and v > IW_OFFSET
+    assert is_spd(P) and is_spd(V)
+    # the merged Gamma keeps the mixture's mean rate
+    assert np.isclose(a / b, np.sum(mix.w * mix.alpha / mix.beta) / W, rtol=1e-9)
+    reduced, _ = reduce_mixture(mix, 0.0, 1e9, 1000)
+    assert np.isclose(reduced.w.sum(), mix.w.sum(), rtol=1e-12)
+
+
+@given(st.lists(st.floats(0.0, 1.0), min_size=3, max_size=41), st.floats(0.5, 1.0),
+       st.floats(0.0, 3.0))
+def test_cardinality_prediction_is_a_pmf(raw, p_s, birth):
+    p = np.asarray(raw) + 1e-9
+    p = p / p.sum()
+    out = np.exp(predict_cardinality(np.log(p), p_s, birth))
+    assert np.isclose(out.sum(), 1.0, atol=1e-12)
+    assert np.all(out >= 0)
+
+
+@given(st.integers(0, 10_000), st.sampled_from(['cphd', 'phd']))
+def test_filter_step_cardinality_sums_to_one(seed, mode):
+    from extended_tracker.config import from_dict
+
+    cfg = from_dict({'model': {'mode': mode, 'surveillance_area': 400.0}})
+    rng = np.random.default_rng(seed)
+    state = FilterState.initial(cfg)
+    for _ in range(4):
+        pts = rng.normal(0, 1.0, (rng.integers(0, 30), 2))
+        state, est, diag = filter_step(state, pts, 0.1, cfg)
+        card = np.exp(state.log_card)
+        assert np.isclose(card.sum(), 1.0, atol=1e-9)
+        assert len(est) <= len(np.unique(state.mixture.label))
+        assert is_spd(state.mixture.P) if len(state.mixture) else True
