@@ -61,6 +61,8 @@ class DetectionConfig:
                               0.0, 10.0)
     widen_sigmas: float = _f(1.0, 'angular interval widened by this many position stds', '',
                              0.0, 5.0)
+    max_widen: float = _f(0.3, 'most the position uncertainty widens the interval', 'm', 0.0,
+                          10.0)
     scale_rate_by_visibility: bool = _f(True, 'expected detections scaled by the visible '
                                         'fraction')
     min_visibility: float = _f(0.05, 'visible fraction below which an object counts as hidden',

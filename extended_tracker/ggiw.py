@@ -266,7 +266,9 @@ class PairUpdate:
 
 
 def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndarray,
-                 rho: float, R: np.ndarray, rate_scale: np.ndarray | None = None) -> PairUpdate:
+                 rho: float, R: np.ndarray, rate_scale: np.ndarray | None = None,
+                 hidden: np.ndarray | None = None,
+                 centroid_offset: np.ndarray | None = None) -> PairUpdate:
     """
     Update components ``comp[k]`` with cells ``cell[k]``; all pairs in one batch.
 
@@ -286,6 +288,15 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
         Factor ``f`` on the measurement rate of each component in this scan (the visible
         fraction): ``gamma_eff = f gamma``, so the Gamma rate seen is ``beta / f`` and the
         posterior rate is ``beta + f``.
+    hidden : (n,) array, optional
+        Hidden fraction ``h`` of each component in this scan. The centroid of the visible
+        part of a partly hidden object is off its centre by up to ``h`` times its extent, so
+        the centroid is treated as a noisier measurement: ``S += h^2 X`` (in the gain and
+        the likelihood alike). Without it, an object covered from one side drifts away from
+        its shadow and is lost.
+    centroid_offset : (n, 2) array, optional
+        Expected offset of the visible part's centroid from the centre (m): the innovation
+        is ``z_bar - (H m + offset)``. Zero for a fully visible object.
 
     Returns
     -------
@@ -319,10 +330,14 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     Y = rho * X + R
     Ppos = P[:, :2, :2]
     S = Ppos + Y / n[:, None, None]
+    if hidden is not None:
+        S = S + (hidden[comp] ** 2)[:, None, None] * X
     S_inv = inv2(S)
     PHt = P[:, :, :2]                                  # P H^T, (k, 4, 2)
     K = PHt @ S_inv                                    # (k, 4, 2)
     eps = zbar - m[:, :2]
+    if centroid_offset is not None:
+        eps = eps - centroid_offset[comp]
     m_new = m + np.einsum('kij,kj->ki', K, eps)
     P_new = symmetrize(P - K @ S @ np.swapaxes(K, 1, 2))
 

@@ -236,7 +236,8 @@ def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
 
 def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: TrackerConfig,
                  rate_scale: np.ndarray | None = None, clutter_area: float | None = None,
-                 visibility: np.ndarray | None = None):
+                 visibility: np.ndarray | None = None,
+                 centroid_offset: np.ndarray | None = None):
     """
     Multi-object update of a predicted state with one scan's detections.
 
@@ -255,6 +256,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         Area (m^2) clutter and births are spread over; ``model.surveillance_area`` if omitted.
     visibility : (n,) array, optional
         Visible fraction of each component, carried into the estimates.
+    centroid_offset : (n, 2) array, optional
+        Expected offset of each component's visible centroid (see ``update_pairs``).
 
     Returns
     -------
@@ -281,9 +284,6 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     p_d = np.asarray(p_d, dtype=float).reshape(n_comp)
     if rate_scale is not None:
         rate_scale = np.clip(np.asarray(rate_scale, dtype=float), 1e-3, None)
-    if visibility is None:
-        visibility = np.ones(n_comp)
-
     pset = build_partitions(points, cfg.partition, confident_predictions(mix, cfg))
     diag.partitions = len(pset.partitions)
     diag.cells = len(pset.cells)
@@ -297,7 +297,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     keep = p_d[comp] > 0
     comp, cell = comp[keep], cell[keep]
     diag.pairs = len(comp)
-    upd = update_pairs(mix, comp, stats, cell, mc.rho, R, rate_scale)
+    hidden = None if visibility is None else np.clip(1.0 - visibility, 0.0, 1.0)
+    upd = update_pairs(mix, comp, stats, cell, mc.rho, R, rate_scale, hidden, centroid_offset)
     # birth row: every cell
     birth_prior = _birth_prior(stats, cfg, area)
     bcell = np.arange(n_cells)
@@ -341,8 +342,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     n_det = _detections_per_label(mix, comp, cell, w_det, w_missed, stats)
     vis_of = {}
-    for i in range(n_comp):
-        vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
+    if visibility is not None:
+        for i in range(n_comp):
+            vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
 
     reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
                                      cfg.reduction.max_components)

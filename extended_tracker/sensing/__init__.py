@@ -1,0 +1,1 @@
+"""Laser front end: scan conversion, scan-shadow p_D, static background."""

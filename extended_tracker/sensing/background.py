@@ -1,0 +1,107 @@
+"""
+Static background of a stationary scanner, learned per beam online.
+
+Notes
+-----
+Each beam keeps a background range ``b`` (NaN while unknown) and a candidate range ``c``
+with the time it has persisted. A return within ``margin`` of ``b`` is background: it is
+dropped and refines ``b``. Otherwise the candidate ages while the beam keeps returning
+the same range:
+
+- with no background yet, a candidate that persists ``confirm_time`` becomes it;
+- a candidate *farther* than ``b`` (something moved away and revealed what is behind)
+  replaces it after ``confirm_time``; "no return" counts as farther and clears ``b``;
+- a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
+  it only after ``forget_time``, so people pausing briefly are not learned.
+
+Beams whose return lies within ``track_gate`` of a confirmed track are never dropped and
+never learned from, so a person who stops walking stays tracked however long they stand.
+The model resets when the beam count or angles change.
+
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scan import ScanPoints
+
+
+@dataclass(frozen=True)
+class BackgroundState:
+    """Per-beam arrays of length B (message order)."""
+
+    angles: np.ndarray
+    background: np.ndarray
+    candidate: np.ndarray
+    candidate_age: np.ndarray
+
+    @staticmethod
+    def for_scan(scan: ScanPoints) -> 'BackgroundState':
+        b = len(scan.angles)
+        return BackgroundState(scan.angles.copy(), np.full(b, np.nan), np.full(b, np.nan),
+                               np.zeros(b))
+
+    def matches(self, scan: ScanPoints) -> bool:
+        return (len(self.angles) == len(scan.angles)
+                and np.allclose(self.angles, scan.angles, atol=1e-9))
+
+
+def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: np.ndarray,
+                    gate: float) -> np.ndarray:
+    """Beams whose return lies within ``radius + gate`` of a confirmed track centre."""
+    prot = np.zeros(len(scan.angles), dtype=bool)
+    if not len(track_centres) or not len(scan.points):
+        return prot
+    d = np.linalg.norm(scan.points[:, None, :] - track_centres[None, :, :], axis=2)
+    near = np.any(d <= (track_radius + gate)[None, :], axis=1)
+    prot[scan.beam[near]] = True
+    return prot
+
+
+def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
+                      protected: np.ndarray) -> tuple[BackgroundState, np.ndarray]:
+    """
+    Learn from one scan and return the new state and a keep-mask over ``scan.points``.
+
+    Parameters
+    ----------
+    state : BackgroundState or None
+    scan : ScanPoints
+    dt : float
+        Time since the previous scan (s), ``>= 0``.
+    cfg : BackgroundConfig
+    protected : (B,) bool array
+        Beams near confirmed tracks: kept and not learned from.
+
+    """
+    if state is None or not state.matches(scan):
+        state = BackgroundState.for_scan(scan)
+    b = state.background.copy()
+    c = state.candidate.copy()
+    age = state.candidate_age.copy()
+    r = scan.ranges                                   # inf where no return
+    margin = cfg.margin
+    known = np.isfinite(b)
+    with np.errstate(invalid='ignore'):
+        is_bg = known & np.isfinite(r) & (np.abs(r - b) <= margin) & ~protected
+        # refine the background where it is seen (exponential smoothing, time constant)
+        gain = min(1.0, dt / cfg.learn_time)
+        b = np.where(is_bg, b + gain * (r - b), b)
+        # candidates: same range as before (or still no return) keeps ageing
+        same = (np.isfinite(r) & np.isfinite(c) & (np.abs(r - c) <= margin)) | \
+            (~np.isfinite(r) & ~np.isfinite(c) & ~np.isnan(c))
+        learn = ~is_bg & ~protected
+        age = np.where(learn & same, age + dt, 0.0)
+        c = np.where(learn & same & np.isfinite(r), c + gain * (r - c), np.where(learn, r, c))
+        c = np.where(learn & ~np.isfinite(r), np.inf, c)
+        farther = ~known | (c > b + margin)
+        nearer = known & (c < b - margin)
+        promote = learn & (((farther) & (age >= cfg.confirm_time))
+                           | (nearer & (age >= cfg.forget_time)))
+        b = np.where(promote, np.where(np.isfinite(c), c, np.nan), b)
+        age = np.where(promote, 0.0, age)
+    keep = ~is_bg[scan.beam]
+    return BackgroundState(state.angles, b, c, age), keep

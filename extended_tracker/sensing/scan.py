@@ -1,0 +1,202 @@
+"""
+LaserScan to Cartesian detections, with every invalid beam masked and counted.
+
+The scan is read through a small protocol: ``angle_min``, ``angle_increment``,
+``range_min``, ``range_max``, ``ranges`` and ``header.stamp`` (``sec``, ``nanosec``);
+``angle_max`` and ``header.frame_id`` are used when present. rclpy messages, rosbags
+messages and :class:`ScanData` all fit it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from ..errors import ScanError
+
+INVALID_KINDS = ('nan', 'pos_inf', 'neg_inf', 'below_min', 'above_max')
+
+
+@dataclass
+class Stamp:
+    """``builtin_interfaces/Time`` lookalike."""
+
+    sec: int = 0
+    nanosec: int = 0
+
+
+@dataclass
+class Header:
+    """``std_msgs/Header`` lookalike."""
+
+    stamp: Stamp = field(default_factory=Stamp)
+    frame_id: str = 'laser'
+
+
+@dataclass
+class ScanData:
+    """A plain ``sensor_msgs/LaserScan`` lookalike (simulator output, tests)."""
+
+    header: Header
+    angle_min: float
+    angle_max: float
+    angle_increment: float
+    range_min: float
+    range_max: float
+    ranges: np.ndarray
+    time_increment: float = 0.0
+    scan_time: float = 0.0
+    intensities: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
+
+
+def stamp_ns(scan) -> int:
+    """Header stamp in integer nanoseconds."""
+    st = scan.header.stamp
+    return int(st.sec) * 1_000_000_000 + int(st.nanosec)
+
+
+def frame_of(scan) -> str:
+    """``header.frame_id`` or an empty string."""
+    return str(getattr(scan.header, 'frame_id', '') or '')
+
+
+@dataclass(frozen=True)
+class ScanPoints:
+    """
+    One scan in the filter's terms.
+
+    Attributes
+    ----------
+    points : (m, 2) array
+        Valid returns in the scan frame (x forward, y left), m.
+    beam : (m,) int array
+        Index of the beam of each point in the message.
+    angles : (B,) array
+        Angle of every beam (rad), in message order.
+    ranges : (B,) array
+        Every range as float, ``inf`` where the beam is invalid (no return).
+    valid : (B,) bool array
+    masked : dict
+        Count of invalid beams of each kind in :data:`INVALID_KINDS`.
+    angle_lo, angle_hi : float
+        Field of view (rad), ``angle_lo <= angle_hi`` whatever the increment's sign.
+    range_max : float
+        Effective maximum range (m).
+
+    """
+
+    points: np.ndarray
+    beam: np.ndarray
+    angles: np.ndarray
+    ranges: np.ndarray
+    valid: np.ndarray
+    masked: dict
+    angle_lo: float
+    angle_hi: float
+    range_max: float
+
+    @property
+    def area(self) -> float:
+        """Area of the field-of-view sector (m^2): where clutter and births can appear."""
+        fov = min(self.angle_hi - self.angle_lo + abs(self.angle_step), 2 * math.pi)
+        return max(0.5 * fov * self.range_max ** 2, 1e-6)
+
+    @property
+    def angle_step(self) -> float:
+        """Absolute angular spacing of the beams (rad)."""
+        if len(self.angles) > 1:
+            return abs(float(self.angles[1] - self.angles[0]))
+        return 0.0
+
+
+def _finite(name, value):
+    try:
+        value = float(value)
+    except (TypeError, ValueError) as err:
+        msg = f'{name} must be a number, got {value!r}'
+        raise ScanError(msg) from err
+    if not math.isfinite(value):
+        raise ScanError(f'{name} must be finite, got {value!r}')
+    return value
+
+
+def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
+                   range_max_inclusive: bool = False) -> ScanPoints:
+    """
+    Convert one scan, masking invalid beams.
+
+    Parameters
+    ----------
+    scan : LaserScan-like
+    min_range, max_range : float
+        Extra limits (m) on top of the scan's own; ``max_range = 0`` means none.
+    range_max_inclusive : bool
+        Keep returns exactly at ``range_max`` (many drivers report "no return" there).
+
+    Raises
+    ------
+    ScanError
+        On a malformed scan: non-finite or zero angle increment, non-finite angles or range
+        limits, ``range_max <= range_min``, a field of view beyond a full turn, or
+        ``len(ranges)`` disagreeing with ``angle_min``/``angle_max``/``angle_increment`` by
+        more than one beam.
+
+    Notes
+    -----
+    Invalid beams: NaN, +inf, -inf, below ``range_min``, above ``range_max``. A scan with no
+    valid beam (or no beam) converts to zero points: the caller runs a predict-only step.
+
+    """
+    a0 = _finite('angle_min', scan.angle_min)
+    inc = _finite('angle_increment', scan.angle_increment)
+    r_lo = _finite('range_min', scan.range_min)
+    r_hi = _finite('range_max', scan.range_max)
+    if inc == 0.0:
+        raise ScanError('angle_increment must not be zero')
+    if r_lo < 0 or r_hi <= r_lo:
+        raise ScanError(f'range limits must satisfy 0 <= range_min < range_max, got '
+                        f'range_min={r_lo}, range_max={r_hi}')
+    try:
+        ranges = np.asarray(scan.ranges, dtype=float).ravel()
+    except (TypeError, ValueError) as err:
+        msg = f'ranges must be numbers: {err}'
+        raise ScanError(msg) from err
+    n = len(ranges)
+    if n * abs(inc) > 2 * math.pi + abs(inc) + 1e-6:
+        raise ScanError(f'{n} beams of {inc:.6g} rad span more than a full turn')
+    a_max = getattr(scan, 'angle_max', None)
+    if a_max is not None and n:
+        a1 = _finite('angle_max', a_max)
+        expected = (a1 - a0) / inc + 1.0
+        if expected < 0.5 or abs(expected - n) > 1.01:
+            raise ScanError(f'len(ranges) = {n} disagrees with angle_min={a0:.6g}, '
+                            f'angle_max={a1:.6g}, angle_increment={inc:.6g} '
+                            f'(expected {expected:.1f} beams)')
+    if min_range > 0:
+        r_lo = max(r_lo, min_range)
+    if max_range > 0:
+        r_hi = min(r_hi, max_range)
+    angles = a0 + inc * np.arange(n)
+    with np.errstate(invalid='ignore'):
+        is_nan = np.isnan(ranges)
+        pos_inf = np.isposinf(ranges)
+        neg_inf = np.isneginf(ranges)
+        finite = ~(is_nan | pos_inf | neg_inf)
+        below = finite & (ranges < r_lo)
+        above = finite & ((ranges > r_hi) if range_max_inclusive else (ranges >= r_hi))
+    valid = finite & ~below & ~above
+    masked = {'nan': int(is_nan.sum()), 'pos_inf': int(pos_inf.sum()),
+              'neg_inf': int(neg_inf.sum()), 'below_min': int(below.sum()),
+              'above_max': int(above.sum())}
+    beam = np.flatnonzero(valid)
+    r = ranges[beam]
+    th = angles[beam]
+    points = np.column_stack([r * np.cos(th), r * np.sin(th)])
+    clean = np.where(valid, ranges, np.inf)
+    if n:
+        lo, hi = float(min(angles[0], angles[-1])), float(max(angles[0], angles[-1]))
+    else:
+        lo = hi = a0
+    return ScanPoints(points, beam, angles, clean, valid, masked, lo, hi, r_hi)

@@ -1,0 +1,166 @@
+"""
+Probability of detection from the scan itself: the scan-shadow model.
+
+Notes
+-----
+Section 6 of ``docs/ggiw-cphd.md``. For each predicted component the ellipse
+``(Hm, E[X])`` subtends an angular interval seen from the sensor (widened by the position
+uncertainty across the line of sight) and has a near range ``r_near``. A beam in the
+interval is *shadowed* when its return is clearly nearer than ``r_near``; beams with no
+return, or a return at or beyond the object, leave it visible. ``p_D = p_D0 * visible``
+and ``p_D = 0`` outside the field of view or beyond ``range_max``. The estimate-shadow
+mode (Granström & Orguner, IEEE TSP 60(11), 2012) replaces the scan's returns by the near
+ranges of the other confident estimates.
+
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..ggiw import Mixture
+from .scan import ScanPoints
+
+
+@dataclass(frozen=True)
+class Visibility:
+    """Per-component detection model of one scan (arrays of length n)."""
+
+    p_d: np.ndarray
+    visible: np.ndarray
+    rate_scale: np.ndarray | None
+    offset: np.ndarray | None = None
+
+
+def _geometry(mix: Mixture, widen_sigmas: float, max_widen: float):
+    """Bearing, half-width (rad), near and far range of each component's ellipse."""
+    c = mix.m[:, :2]
+    r = np.hypot(c[:, 0], c[:, 1])
+    bearing = np.arctan2(c[:, 1], c[:, 0])
+    e = np.column_stack([np.cos(bearing), np.sin(bearing)])      # along the line of sight
+    u = np.column_stack([-e[:, 1], e[:, 0]])                     # across it
+    X = mix.expected_extent()
+    along = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', e, X, e), 0.0))
+    across = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, X, u), 0.0))
+    sigma = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, mix.P[:, :2, :2], u), 0.0))
+    half = across + np.minimum(widen_sigmas * sigma, max_widen)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        half_angle = np.where(r > half, np.arcsin(np.clip(half / r, 0, 1)), np.pi / 2)
+    return bearing, half_angle, np.maximum(r - along, 0.0), r + along
+
+
+def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range, margin):
+    """
+    Fraction of the beams in each component's interval not blocked by a nearer return.
+
+    ``beam_range`` (B,) holds, per beam in message order, the range that may block (inf
+    where nothing does). Beams of the interval outside the field of view count as hidden.
+    """
+    k = len(bearing)
+    if k == 0 or len(scan.angles) == 0:
+        return np.zeros(k), bearing.copy()
+    order = np.argsort(scan.angles, kind='stable')
+    ang = scan.angles[order]
+    rng = beam_range[order]
+    lo = np.searchsorted(ang, bearing - half_angle, side='left')
+    hi = np.searchsorted(ang, bearing + half_angle, side='right')
+    # an interval narrower than the beam spacing still sees its nearest beam
+    nearest = np.clip(np.searchsorted(ang, bearing), 0, len(ang) - 1)
+    empty = hi <= lo
+    lo = np.where(empty, nearest, lo)
+    hi = np.where(empty, nearest + 1, hi)
+    width = hi - lo
+    w_max = int(width.max())
+    idx = lo[:, None] + np.arange(w_max)[None, :]
+    inside = idx < hi[:, None]
+    idx = np.minimum(idx, len(ang) - 1)
+    blocked = (rng[idx] < (r_near - margin)[:, None]) & inside
+    frac_visible = 1.0 - blocked.sum(axis=1) / width
+    # mean angle of the unblocked beams: where the visible part's centroid lies
+    free = inside & ~blocked
+    n_free = free.sum(axis=1)
+    mean_free = np.where(n_free > 0, (np.where(free, ang[idx], 0.0)).sum(axis=1)
+                         / np.maximum(n_free, 1), bearing)
+    # part of the interval outside the field of view is not seen at all
+    step = max(float(np.median(np.diff(ang))) if len(ang) > 1 else 0.0, 1e-9)
+    span = 2 * half_angle
+    covered = np.clip(np.minimum(bearing + half_angle, scan.angle_hi + step / 2)
+                      - np.maximum(bearing - half_angle, scan.angle_lo - step / 2), 0.0, None)
+    in_fov = np.where(span > 0, np.clip(covered / np.maximum(span, 1e-12), 0.0, 1.0), 1.0)
+    centre_in = (bearing >= scan.angle_lo - step / 2) & (bearing <= scan.angle_hi + step / 2)
+    return np.where(centre_in, frac_visible * in_fov, 0.0), mean_free
+
+
+def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
+    """
+    p_D of every predicted component for one scan, by ``cfg.detection.model``.
+
+    Parameters
+    ----------
+    mix : Mixture
+        Predicted mixture.
+    scan : ScanPoints or None
+        The scan (None for constant p_D without a scan).
+    cfg : TrackerConfig
+
+    """
+    det = cfg.detection
+    n = len(mix)
+    if det.model == 'constant' or scan is None or n == 0:
+        ones = np.ones(n)
+        return Visibility(np.full(n, det.p_d0), ones, None)
+    bearing, half, r_near, r_far = _geometry(mix, det.widen_sigmas, 0.0)
+    if det.model == 'scan_shadow':
+        visible, mean_free = _visible_fraction(bearing, half, r_near, scan, scan.ranges,
+                                               det.shadow_margin)
+    else:
+        visible, mean_free = _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det)
+    # The visible part's centroid sits at the mean unshadowed angle, on the object's
+    # near range: an offset across the line of sight from the centre.
+    r_c = np.hypot(mix.m[:, 0], mix.m[:, 1])
+    across = np.column_stack([-np.sin(bearing), np.cos(bearing)])
+    shift = np.where((visible > 0) & (visible < 1), _wrap(mean_free - bearing) * r_c, 0.0)
+    offset = across * shift[:, None]
+    # p_D from the interval widened by the position uncertainty (capped)
+    if det.max_widen > 0 and det.widen_sigmas > 0:
+        bw, hw, rnw, rfw = _geometry(mix, det.widen_sigmas, det.max_widen)
+        if det.model == 'scan_shadow':
+            visible, _ = _visible_fraction(bw, hw, rnw, scan, scan.ranges, det.shadow_margin)
+        else:
+            visible, _ = _estimate_shadow(mix, bw, hw, rnw, rfw, scan, det)
+    visible = np.where(r_near > scan.range_max, 0.0, visible)
+    visible = np.where(visible < det.min_visibility, 0.0, visible)
+    rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
+    return Visibility(det.p_d0 * visible, visible, rate_scale, offset)
+
+
+def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.5):
+    """Visible fraction with shadows cast by the other confident components, beam by beam."""
+    n = len(mix)
+    order = np.argsort(scan.angles, kind='stable')
+    ang_sorted = scan.angles[order]
+    confident = mix.w >= min_weight
+    visible = np.ones(n)
+    mean_free = bearing.copy()
+    # for every component, the blocking range of each beam is the nearest far range of
+    # another confident component (of another label) whose interval covers the beam
+    for i in range(n):
+        others = confident & (mix.label != mix.label[i]) & (r_far < r_near[i])
+        if not np.any(others):
+            blocking = np.full(len(scan.angles), np.inf)
+        else:
+            oi = np.flatnonzero(others)
+            cover = np.abs(_wrap(ang_sorted[None, :] - bearing[oi, None])) <= half[oi, None]
+            near = np.where(cover, r_near[oi, None], np.inf).min(axis=0)
+            blocking = np.empty(len(scan.angles))
+            blocking[order] = near
+        vis_i, mf_i = _visible_fraction(bearing[i:i + 1], half[i:i + 1], r_near[i:i + 1],
+                                        scan, blocking, det.shadow_margin)
+        visible[i], mean_free[i] = vis_i[0], mf_i[0]
+    return visible, mean_free
+
+
+def _wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
