@@ -34,7 +34,7 @@ from .config import TrackerConfig
 from .errors import ScanError
 from .sensing.background import BackgroundState, protected_beams, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
-from .sensing.shadow import detection_model
+from .sensing.shadow import detection_model, pair_detection_probability
 from .tracker import Estimates, FilterState, predict_state, update_state
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame')
@@ -192,9 +192,13 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
 
     pred = predict_state(filt, dt, cfg)
     vis = detection_model(pred.mixture, sp, cfg)
+
+    def pair_p_d(mix, comp, m_new, P_new):
+        return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)
+
     new_filter, estimates, fdiag = update_state(
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
-        visibility=vis.visible, centroid_offset=vis.offset)
+        visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d)
     for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
               'capped_cells', 'capped_components'):
         diag[k] = getattr(fdiag, k)

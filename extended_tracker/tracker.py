@@ -16,7 +16,8 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
-    cell_stats, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict, update_pairs,
+    cell_stats, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, PairUpdate, predict,
+    update_pairs,
 )
 from .partition import build_partitions
 from .reduction import reduce_mixture
@@ -237,7 +238,7 @@ def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
 def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: TrackerConfig,
                  rate_scale: np.ndarray | None = None, clutter_area: float | None = None,
                  visibility: np.ndarray | None = None,
-                 centroid_offset: np.ndarray | None = None):
+                 centroid_offset: np.ndarray | None = None, pair_p_d=None):
     """
     Multi-object update of a predicted state with one scan's detections.
 
@@ -258,6 +259,10 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         Visible fraction of each component, carried into the estimates.
     centroid_offset : (n, 2) array, optional
         Expected offset of each component's visible centroid (see ``update_pairs``).
+    pair_p_d : callable, optional
+        ``pair_p_d(mix, comp, m_updated, P_updated) -> (k,)`` p_D of each (component,
+        cell) pair at its updated position; by default ``p_d[comp]``. ``p_d`` itself is
+        still what the missed-detection factor uses.
 
     Returns
     -------
@@ -294,11 +299,14 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     # existing components: gated (component, cell) pairs
     comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg))
-    keep = p_d[comp] > 0
-    comp, cell = comp[keep], cell[keep]
-    diag.pairs = len(comp)
     hidden = None if visibility is None else np.clip(1.0 - visibility, 0.0, 1.0)
     upd = update_pairs(mix, comp, stats, cell, mc.rho, R, rate_scale, hidden, centroid_offset)
+    p_d_pair = p_d[comp] if pair_p_d is None else pair_p_d(mix, comp, upd.m, upd.P)
+    keep = p_d_pair > 0
+    comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
+    upd = PairUpdate(*(getattr(upd, f)[keep] for f in ('log_lik', 'alpha', 'beta', 'm', 'P',
+                                                        'v', 'V')))
+    diag.pairs = len(comp)
     # birth row: every cell
     birth_prior = _birth_prior(stats, cfg, area)
     bcell = np.arange(n_cells)
@@ -306,7 +314,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     log_pd0 = np.log(cfg.detection.p_d0)
 
     log_g = np.full((n_comp + 1, n_cells), NEG_INF)
-    log_g[comp, cell] = np.log(p_d[comp]) + upd.log_lik
+    log_g[comp, cell] = np.log(p_d_pair) + upd.log_lik
     log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + bupd.log_lik,
                                 NEG_INF)
     mu_b = birth_intensity(cfg, state.dt)

@@ -164,3 +164,25 @@ def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.
 
 def _wrap(a):
     return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.ndarray,
+                               P_updated: np.ndarray, scan: ScanPoints | None, cfg,
+                               default: np.ndarray) -> np.ndarray:
+    """
+    p_D of (component, cell) pairs, evaluated where the cell puts the object.
+
+    Notes
+    -----
+    The detection term of the update is ``integral p_D(x) l(W|x) N(x) dx``; with ``p_D``
+    smooth on the scale of the posterior it is ``p_D(x_W) integral l N``, ``x_W`` the
+    posterior mean given ``W``. Evaluating it at the *predicted* mean instead would forbid
+    a track that coasted behind an occluder (p_D = 0 there) from claiming its object's
+    first points when they reappear a little ahead of the prediction.
+    """
+    det = cfg.detection
+    if det.model != 'scan_shadow' or scan is None or not len(comp):
+        return default[comp]
+    probe = Mixture(mix.w[comp], mix.alpha[comp], mix.beta[comp], m_updated, P_updated,
+                    mix.v[comp], mix.V[comp], mix.label[comp])
+    return detection_model(probe, scan, cfg).p_d

@@ -237,10 +237,13 @@ def tutorial_scene(occluder_range: float = 2.5) -> Scene:
 
 
 def occlusion_scene() -> Scene:
-    """One pedestrian standing at 2.5 m, another walking behind it at 6 m."""
+    """
+    One pedestrian standing at 2.5 m (shoulders across the line of sight), another walking
+    behind it at 6 m and 0.5 m/s: fully hidden for about 1.9 s.
+    """
     return Scene(objects=(
-        SimObject((2.5, 0.0), (0.0, 0.0), kind='standing'),
-        SimObject((6.0, -3.0), (0.0, 0.6)),
+        SimObject((2.5, 0.0), (0.0, 0.0), a=0.2, b=0.3, kind='standing'),
+        SimObject((6.0, -3.0), (0.0, 0.5)),
     ), laser=LaserSpec())
 
 

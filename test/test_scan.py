@@ -1,0 +1,99 @@
+"""Scan conversion against hand-computed scans; every invalid-beam kind; malformed scans."""
+
+import math
+
+from hypothesis import given, strategies as st
+import numpy as np
+import pytest
+
+from extended_tracker.errors import ScanError
+from extended_tracker.sensing.scan import Header, scan_to_points, ScanData, Stamp
+
+
+def make_scan(ranges, angle_min=-math.pi / 2, inc=math.pi / 2, range_min=0.1, range_max=10.0,
+              angle_max=None):
+    ranges = np.asarray(ranges, dtype=float)
+    if angle_max is None:
+        angle_max = angle_min + inc * (len(ranges) - 1)
+    return ScanData(Header(Stamp(1, 0), 'laser'), angle_min, angle_max, inc, range_min,
+                    range_max, ranges)
+
+
+def test_hand_computed_points():
+    # beams at -90, 0, +90 degrees: right, forward, left
+    sp = scan_to_points(make_scan([1.0, 2.0, 3.0]))
+    np.testing.assert_allclose(sp.points, [[0.0, -1.0], [2.0, 0.0], [0.0, 3.0]], atol=1e-12)
+    assert sp.beam.tolist() == [0, 1, 2]
+    assert sum(sp.masked.values()) == 0
+
+
+def test_every_invalid_kind_is_masked_and_counted():
+    ranges = [np.nan, np.inf, -np.inf, 0.05, 12.0, 10.0, 5.0]
+    sp = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1))
+    assert sp.masked == {'nan': 1, 'pos_inf': 1, 'neg_inf': 1, 'below_min': 1, 'above_max': 2}
+    assert sp.beam.tolist() == [6]                    # range_max itself means "no return"
+    np.testing.assert_allclose(sp.points, [[5 * math.cos(0.6), 5 * math.sin(0.6)]])
+    inclusive = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1),
+                               range_max_inclusive=True)
+    assert inclusive.beam.tolist() == [5, 6] and inclusive.masked['above_max'] == 1
+
+
+def test_zero_ranges_of_drivers_count_below_min():
+    sp = scan_to_points(make_scan([0.0, 0.0, 2.0], range_min=0.02))
+    assert sp.masked['below_min'] == 2 and len(sp.points) == 1
+
+
+def test_negative_increment():
+    # +135 deg down to -135 deg, as a scanner mounted upside down reports
+    inc = -math.pi / 2
+    sp = scan_to_points(make_scan([1.0, 1.0, 1.0, 1.0], angle_min=3 * math.pi / 4, inc=inc,
+                                  angle_max=-3 * math.pi / 4))
+    expected = [[math.cos(a), math.sin(a)] for a in (3 * math.pi / 4, math.pi / 4,
+                                                     -math.pi / 4, -3 * math.pi / 4)]
+    np.testing.assert_allclose(sp.points, expected, atol=1e-12)
+    assert sp.angle_lo == pytest.approx(-3 * math.pi / 4)
+    assert sp.angle_hi == pytest.approx(3 * math.pi / 4)
+
+
+def test_empty_and_all_invalid_scans_give_no_points():
+    assert len(scan_to_points(make_scan([])).points) == 0
+    sp = scan_to_points(make_scan([np.nan, np.inf, 0.0]))
+    assert len(sp.points) == 0 and sum(sp.masked.values()) == 3
+
+
+@pytest.mark.parametrize('kwargs, fragment', [
+    ({'inc': 0.0}, 'angle_increment must not be zero'),
+    ({'inc': float('nan')}, 'angle_increment must be finite'),
+    ({'range_min': 5.0, 'range_max': 1.0}, 'range limits'),
+    ({'range_max': float('inf')}, 'range_max must be finite'),
+    ({'angle_max': 5.0}, 'disagrees'),
+])
+def test_malformed_scans_raise_clear_errors(kwargs, fragment):
+    with pytest.raises(ScanError, match=fragment):
+        scan_to_points(make_scan([1.0, 2.0, 3.0], **kwargs))
+
+
+def test_more_than_a_full_turn_is_refused():
+    with pytest.raises(ScanError, match='full turn'):
+        scan_to_points(make_scan(np.ones(100), angle_min=0.0, inc=0.1, angle_max=9.9))
+
+
+def test_non_numeric_ranges_are_refused():
+    scan = make_scan([1.0, 2.0, 3.0])
+    scan.ranges = ['a', 'b', 'c']
+    with pytest.raises(ScanError, match='ranges must be numbers'):
+        scan_to_points(scan)
+
+
+@given(st.lists(st.floats(0.2, 30.0), min_size=1, max_size=200),
+       st.floats(-math.pi, math.pi), st.floats(0.001, 0.05), st.booleans())
+def test_polar_cartesian_polar_round_trip(ranges, a0, inc, negative):
+    inc = -inc if negative else inc
+    sp = scan_to_points(make_scan(ranges, angle_min=a0, inc=inc, range_min=0.1,
+                                  range_max=31.0))
+    r = np.hypot(sp.points[:, 0], sp.points[:, 1])
+    th = np.arctan2(sp.points[:, 1], sp.points[:, 0])
+    np.testing.assert_allclose(r, np.asarray(ranges)[sp.beam], rtol=1e-12)
+    # angles compared on the circle
+    d = np.angle(np.exp(1j * (th - sp.angles[sp.beam])))
+    assert np.max(np.abs(d)) < 1e-9
