@@ -155,7 +155,8 @@ class ScanConfig:
 class BackgroundConfig:
     """Static background learned per beam for a stationary sensor."""
 
-    enabled: bool = _f(True, 'learn and drop the static background (stationary sensor)')
+    enabled: bool = _f(True, 'learn and drop the static background (stationary sensor; a '
+                       'person who never moves from start-up is learned too)')
     margin: float = _f(0.15, 'a return within this of the background range is background',
                        'm', 0.0, 10.0)
     learn_time: float = _f(2.0, 'time constant of learning a beam background', 's', 0.0, 1e4,
@@ -166,6 +167,10 @@ class BackgroundConfig:
                              's', 0.0, 1e4)
     track_gate: float = _f(0.5, 'returns this close to a confirmed track are never background',
                            'm', 0.0, 10.0)
+    moved_distance: float = _f(0.5, 'a track that moved this far protects its returns for good',
+                               'm', 0.0, 100.0)
+    protect_semi_axis: float = _f(0.6, 'only tracks this small (semi-major) protect returns: '
+                                  'people, not walls', 'm', 0.0, 100.0)
 
 
 @dataclass(frozen=True)

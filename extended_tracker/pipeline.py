@@ -12,8 +12,9 @@ Time handling (stamps from the scan header):
 - a repeated stamp: the scan is not used again; the previous estimates are returned
   with event ``repeated_stamp`` (never a zero-dt double update);
 - a stamp earlier than the previous one (a bag looping, a clock jump): the filter is
-  reset (tracks dropped, learned background kept) and the scan processed as a first scan;
-  event ``time_backwards``;
+  reset (tracks dropped, learned background kept, new labels continue after the old
+  ones so an id is never reused) and the scan processed as a first scan; event
+  ``time_backwards``;
 - a gap longer than ``timing.max_gap``: the filter is re-initialised the same way; event
   ``time_gap``.
 
@@ -98,7 +99,7 @@ class StepResult:
 
 
 def _diag_template():
-    d = {'detections': 0, 'background_dropped': 0, 'partitions': 0, 'cells': 0, 'pairs': 0,
+    d = {'detections': 0, 'background_dropped': 0, 'left_view': 0, 'partitions': 0, 'cells': 0, 'pairs': 0,
          'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
          'capped_components': 0, 'beams': 0}
     d.update({f'masked_{k}': 0 for k in INVALID_KINDS})
@@ -118,6 +119,11 @@ def _repeat(state, scan_stamp, frame, event, error, t0, cfg, diag=None):
     return StepResult(scan_stamp, frame, state.last_estimates, card, mean, np.zeros((0, 2)),
                       np.zeros((0, 2)), diag or _diag_template(), event, error,
                       time.perf_counter() - t0)
+
+
+def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
+    """A fresh filter whose labels continue after the old ones (ids are never reused)."""
+    return replace(FilterState.initial(cfg), next_label=filt.next_label)
 
 
 def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState, StepResult]:
@@ -158,13 +164,13 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         return state, _repeat(state, now, frame, 'repeated_stamp', None, t0, cfg)
     elif now < state.last_stamp_ns:
         event = 'time_backwards'
-        filt = FilterState.initial(cfg)
+        filt = _reset(filt, cfg)
         dt = cfg.timing.default_dt
     else:
         dt = (now - state.last_stamp_ns) * 1e-9
         if dt > cfg.timing.max_gap:
             event = 'time_gap'
-            filt = FilterState.initial(cfg)
+            filt = _reset(filt, cfg)
             dt = cfg.timing.default_dt
     diag = _diag_template()
     diag['beams'] = len(sp.angles)
@@ -177,13 +183,13 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     bg_points = np.zeros((0, 2))
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates
-        confirmed = np.isin(est.label, filt.confirmed_labels(cfg.extraction.confirm_scans))
+        bgc = cfg.background
+        confirmed = np.isin(est.label, filt.confirmed_labels(
+            cfg.extraction.confirm_scans, bgc.moved_distance))
+        major = est.axes()[0] if len(est) else np.zeros(0)
+        confirmed &= major <= bgc.protect_semi_axis
         centres = est.m[confirmed, :2]
-        if len(centres):
-            major, _, _ = est.axes()
-            radius = major[confirmed]
-        else:
-            radius = np.zeros(0)
+        radius = major[confirmed]
         prot = protected_beams(sp, centres, radius, cfg.background.track_gate)
         background, keep = update_background(background, sp, dt, cfg.background, prot)
         bg_points = points[~keep]
@@ -192,6 +198,15 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
 
     pred = predict_state(filt, dt, cfg)
     vis = detection_model(pred.mixture, sp, cfg)
+    if vis.outside is not None and np.any(vis.outside):
+        # objects that left the field of view or range can never be seen again here:
+        # drop them rather than let them coast forever with p_D = 0
+        keep_c = ~vis.outside
+        pred = replace(pred, mixture=pred.mixture.take(keep_c))
+        vis = replace(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
+                      rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
+                      offset=vis.offset[keep_c], outside=vis.outside[keep_c])
+        diag['left_view'] = int((~keep_c).sum())
 
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)

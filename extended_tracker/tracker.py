@@ -100,7 +100,9 @@ class FilterState:
     next_label : int
         Next unused track label.
     reported : (r,) int64 array
-        Labels reported in the last scan; ``reported_scans`` counts consecutive scans.
+        Labels reported in the last scan; ``reported_scans`` counts consecutive scans,
+        ``reported_origin`` (r, 2) is where each was first reported and
+        ``reported_travel`` (r,) the farthest it has been from there (m).
 
     """
 
@@ -109,6 +111,9 @@ class FilterState:
     next_label: int = 1
     reported: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     reported_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    reported_origin: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    reported_travel: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reported_age: np.ndarray = field(default_factory=lambda: np.zeros(0))
     dt: float = 0.1
 
     @staticmethod
@@ -118,9 +123,16 @@ class FilterState:
         log_card[0] = 0.0
         return FilterState(Mixture.empty(), log_card)
 
-    def confirmed_labels(self, scans: int) -> np.ndarray:
-        """Labels reported for at least ``scans`` consecutive scans."""
-        return self.reported[self.reported_scans >= scans]
+    def confirmed_labels(self, scans: int, min_travel: float = 0.0,
+                         max_unmoved_age: float = np.inf) -> np.ndarray:
+        """
+        Labels reported ``scans`` scans in a row that have moved ``min_travel`` m, or that
+        have not moved but were first reported less than ``max_unmoved_age`` s ago.
+        """
+        moved = self.reported_travel >= min_travel
+        young = self.reported_age < max_unmoved_age
+        ok = (self.reported_scans >= scans) & (moved | young)
+        return self.reported[ok]
 
 
 @dataclass
@@ -362,10 +374,30 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     new_state = replace(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
     estimates = extract(new_state, cfg, n_det, vis_of)
-    prev = dict(zip(state.reported.tolist(), state.reported_scans.tolist()))
-    scans = np.array([prev.get(int(lab), 0) + 1 for lab in estimates.label], dtype=np.int64)
-    new_state = replace(new_state, reported=estimates.label.copy(), reported_scans=scans)
+    new_state = _record_reports(state, new_state, estimates)
     return new_state, estimates, diag
+
+
+def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
+    """Carry per-label report counts, first positions and distances travelled."""
+    index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
+    k = len(est)
+    scans = np.ones(k, dtype=np.int64)
+    origin = est.m[:, :2].copy()
+    age = np.zeros(k)
+    for j, lab in enumerate(est.label.tolist()):
+        i = index.get(lab)
+        if i is not None:
+            scans[j] = old.reported_scans[i] + 1
+            origin[j] = old.reported_origin[i]
+            age[j] = old.reported_age[i] + new.dt
+    travel = np.linalg.norm(est.m[:, :2] - origin, axis=1)
+    for j, lab in enumerate(est.label.tolist()):
+        i = index.get(lab)
+        if i is not None:
+            travel[j] = max(travel[j], old.reported_travel[i])
+    return replace(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
+                   reported_travel=travel, reported_age=age)
 
 
 def gate_threshold(cfg: TrackerConfig) -> float:

@@ -14,8 +14,15 @@ the same range:
 - a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
   it only after ``forget_time``, so people pausing briefly are not learned.
 
-Beams whose return lies within ``track_gate`` of a confirmed track are never dropped and
-never learned from, so a person who stops walking stays tracked however long they stand.
+Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
+person-sized, and moved at least ``moved_distance``: the caller decides) and in front of a
+known background are never dropped and never learned from, so a person who walks in and
+stops stays tracked however long they stand. Where the background is still unknown,
+tracks protect nothing, so a wall tracked at start-up is still learned.
+
+Limitation: a per-beam model cannot tell a person who stands still from start-up from a
+piece of furniture; such a person becomes background after ``confirm_time``. Disable the
+background where people stand still from the start and there is no static clutter.
 The model resets when the beam count or angles change.
 
 """
@@ -86,14 +93,14 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
     margin = cfg.margin
     known = np.isfinite(b)
     with np.errstate(invalid='ignore'):
-        is_bg = known & np.isfinite(r) & (np.abs(r - b) <= margin) & ~protected
+        is_bg = known & np.isfinite(r) & (np.abs(r - b) <= margin)
         # refine the background where it is seen (exponential smoothing, time constant)
         gain = min(1.0, dt / cfg.learn_time)
         b = np.where(is_bg, b + gain * (r - b), b)
         # candidates: same range as before (or still no return) keeps ageing
         same = (np.isfinite(r) & np.isfinite(c) & (np.abs(r - c) <= margin)) | \
             (~np.isfinite(r) & ~np.isfinite(c) & ~np.isnan(c))
-        learn = ~is_bg & ~protected
+        learn = ~is_bg & ~(protected & known)
         age = np.where(learn & same, age + dt, 0.0)
         c = np.where(learn & same & np.isfinite(r), c + gain * (r - c), np.where(learn, r, c))
         c = np.where(learn & ~np.isfinite(r), np.inf, c)

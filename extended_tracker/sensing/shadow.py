@@ -32,6 +32,7 @@ class Visibility:
     visible: np.ndarray
     rate_scale: np.ndarray | None
     offset: np.ndarray | None = None
+    outside: np.ndarray | None = None
 
 
 def _geometry(mix: Mixture, widen_sigmas: float, max_widen: float):
@@ -130,10 +131,14 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
             visible, _ = _visible_fraction(bw, hw, rnw, scan, scan.ranges, det.shadow_margin)
         else:
             visible, _ = _estimate_shadow(mix, bw, hw, rnw, rfw, scan, det)
+    # wholly out of the field of view or beyond range: the object has left the scene
+    step = abs(scan.angle_step)
+    outside = ((r_near > scan.range_max) | (bearing + half < scan.angle_lo - step)
+               | (bearing - half > scan.angle_hi + step))
     visible = np.where(r_near > scan.range_max, 0.0, visible)
     visible = np.where(visible < det.min_visibility, 0.0, visible)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
-    return Visibility(det.p_d0 * visible, visible, rate_scale, offset)
+    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside)
 
 
 def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.5):
