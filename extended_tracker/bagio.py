@@ -58,3 +58,118 @@ def message_typestore():
         types.update(get_types_from_msg(text, name))
     store.register(types)
     return store
+
+
+SCAN_TYPE = 'sensor_msgs/msg/LaserScan'
+TRACKS_TYPE = 'extended_tracker_msgs/msg/ExtendedObjectArray'
+MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
+
+_BASE_DEFAULT = {'bool': False, 'string': ''}
+_NUMPY_OF = {'bool': 'bool', 'int8': 'int8', 'uint8': 'uint8', 'byte': 'uint8',
+             'char': 'uint8', 'int16': 'int16', 'uint16': 'uint16', 'int32': 'int32',
+             'uint32': 'uint32', 'int64': 'int64', 'uint64': 'uint64',
+             'float32': 'float32', 'float64': 'float64'}
+
+
+def build_message(store, typename: str, data: dict | None = None):
+    """
+    A rosbags message of ``typename`` from nested plain data; absent fields get defaults.
+
+    Raises
+    ------
+    BagError
+        On a field name the type does not have.
+
+    """
+    import numpy as np
+    from rosbags.typesys.store import Nodetype  # noqa: F401  (documented enum values)
+
+    data = data or {}
+    _, fields = store.fielddefs[typename]
+    names = {name for name, _ in fields}
+    unknown = set(data) - names
+    if unknown:
+        raise BagError(f'{typename} has no field(s) {sorted(unknown)}')
+    kwargs = {}
+    for name, (kind, detail) in fields:
+        value = data.get(name)
+        kwargs[name] = _build_field(store, kind, detail, value, np)
+    return store.types[typename](**kwargs)
+
+
+def _build_field(store, kind, detail, value, np):
+    kind = int(kind)
+    if kind == 1:                                   # BASE
+        base = detail[0]
+        if value is None:
+            return _BASE_DEFAULT.get(base, 0.0 if base.startswith('float') else 0)
+        if base == 'string':
+            return str(value)
+        if base == 'bool':
+            return bool(value)
+        return float(value) if base.startswith('float') else int(value)
+    if kind == 2:                                   # NAME: nested message
+        return build_message(store, detail, value)
+    # ARRAY (3) or SEQUENCE (4): detail = ((subkind, subdetail), length)
+    (subkind, subdetail), length = detail
+    if int(subkind) == 1 and subdetail[0] != 'string':
+        dtype = _NUMPY_OF[subdetail[0]]
+        if value is None:
+            return np.zeros(length if int(kind) == 3 else 0, dtype=dtype)
+        return np.asarray(value, dtype=dtype)
+    items = [] if value is None else list(value)
+    if int(kind) == 3 and not items:
+        items = [None] * length
+    return [_build_field(store, subkind, subdetail, v, np) for v in items]
+
+
+def open_scans(path, scan_topic: str | None = None):
+    """
+    Open a bag (ROS 2 folder in sqlite3 or MCAP, or a ROS 1 ``.bag``) for its LaserScans.
+
+    Returns
+    -------
+    reader : rosbags AnyReader (open; close it)
+    connections : the connections of the chosen LaserScan topic
+
+    Raises
+    ------
+    BagError
+        Missing or unreadable bag, no LaserScan topic, an unknown ``scan_topic``, or several
+        LaserScan topics and none chosen (the message lists them).
+
+    """
+    from pathlib import Path
+
+    from rosbags.highlevel import AnyReader
+
+    p = Path(path)
+    if not p.exists():
+        raise BagError(f'input bag {p} does not exist')
+    try:
+        reader = AnyReader([p])
+        reader.open()
+    except Exception as err:  # rosbags raises several unrelated types for broken bags
+        msg = f'cannot read bag {p}: {type(err).__name__}: {err}'
+        raise BagError(msg) from err
+    scans = [c for c in reader.connections if c.msgtype == SCAN_TYPE]
+    topics = sorted({c.topic for c in scans})
+    if not topics:
+        reader.close()
+        others = sorted({f'{c.topic} ({c.msgtype})' for c in reader.connections})
+        raise BagError(f'no sensor_msgs/LaserScan topic in {p}; it has: {", ".join(others)}')
+    if scan_topic is not None:
+        want = {scan_topic, '/' + scan_topic.lstrip('/'), scan_topic.lstrip('/')}
+        chosen = [t for t in topics if t in want]
+        if not chosen:
+            reader.close()
+            raise BagError(f'--scan-topic {scan_topic!r} is not a LaserScan topic of {p}; '
+                           f'choose one of: {", ".join(topics)}')
+        topic = chosen[0]
+    elif len(topics) > 1:
+        reader.close()
+        raise BagError(f'{p} has several LaserScan topics; choose one with --scan-topic: '
+                       f'{", ".join(topics)}')
+    else:
+        topic = topics[0]
+    return reader, [c for c in scans if c.topic == topic]

@@ -98,9 +98,9 @@ class BirthConfig:
                          'indistinguishable from clutter)', 'detections', 1, 1000)
     velocity_std: float = _f(1.5, 'velocity std of a new object', 'm/s', 0.0, 50.0,
                              lo_open=True)
-    dof: float = _f(8.0, 'inverse Wishart v of the birth extent prior (> 6)', '', 6.0, 1e5,
+    dof: float = _f(20.0, 'inverse Wishart v of the birth extent prior (> 6)', '', 6.0, 1e5,
                     lo_open=True)
-    extent_semi_axis: float = _f(0.2, 'semi-axis of the birth extent prior mean (circle)', 'm',
+    extent_semi_axis: float = _f(0.25, 'semi-axis of the birth extent prior mean (circle)', 'm',
                                  0.0, 10.0, lo_open=True)
     rate_shape: float = _f(1.0, 'Gamma alpha of the birth measurement rate', '', 0.0, 1e5,
                            lo_open=True)
@@ -131,8 +131,8 @@ class ExtractionConfig:
 
     min_existence: float = _f(0.3, 'labels lighter than this are never reported', '', 0.0, 1.0)
     phd_threshold: float = _f(0.5, 'phd mode reports labels heavier than this', '', 0.0, 1.0)
-    confirm_scans: int = _f(3, 'scans a label is reported before it counts as confirmed', '',
-                            1, 1000)
+    confirm_scans: int = _f(3, 'scans in a row a label must be extracted before it is reported',
+                            '', 1, 1000)
     rectangle_length: float = _f(1.2, 'objects longer than this are drawn as rectangles', 'm',
                                  0.0, 100.0)
     rectangle_elongation: float = _f(1.8, 'or more elongated than this (semi-axes ratio)', '',

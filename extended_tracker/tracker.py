@@ -54,6 +54,12 @@ class Estimates:
     def __len__(self):
         return int(self.label.shape[0])
 
+    def take(self, idx) -> 'Estimates':
+        """The objects at ``idx`` (index array or boolean mask)."""
+        return Estimates(self.label[idx], self.existence[idx], self.m[idx], self.P[idx],
+                         self.X[idx], self.rate[idx], self.num_detections[idx],
+                         self.visibility[idx])
+
     def axes(self):
         """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""
         a = self.X[:, 0, 0]
@@ -100,7 +106,8 @@ class FilterState:
     next_label : int
         Next unused track label.
     reported : (r,) int64 array
-        Labels reported in the last scan; ``reported_scans`` counts consecutive scans,
+        Labels extracted in the last scan (reported once ``extraction.confirm_scans`` in a
+        row); ``reported_scans`` counts consecutive scans,
         ``reported_origin`` (r, 2) is where each was first reported and
         ``reported_travel`` (r,) the farthest it has been from there (m).
 
@@ -373,9 +380,11 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     diag.components = len(reduced)
 
     new_state = replace(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
-    estimates = extract(new_state, cfg, n_det, vis_of)
-    new_state = _record_reports(state, new_state, estimates)
-    return new_state, estimates, diag
+    candidates = extract(new_state, cfg, n_det, vis_of)
+    new_state = _record_reports(state, new_state, candidates)
+    # report a label once it has been extracted confirm_scans scans in a row
+    shown = new_state.reported_scans >= cfg.extraction.confirm_scans
+    return new_state, candidates.take(shown), diag
 
 
 def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:

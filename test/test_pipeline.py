@@ -92,8 +92,11 @@ def test_time_backwards_resets_the_filter():
     new_state, res = step(state, first, CFG)
     assert res.event == 'time_backwards'
     assert new_state.last_stamp_ns == first.header.stamp.sec * 10**9 + first.header.stamp.nanosec
-    # the tracks were dropped; the objects seen again are new tracks whose ids continue
-    # after the old ones (never reused)
+    # the tracks were dropped; the objects seen again are new tracks (reported after
+    # confirm_scans) whose ids continue after the old ones (never reused)
+    assert len(res.estimates) == 0
+    for s in scans(5)[1:]:
+        new_state, res = step(new_state, s, CFG)
     assert len(res.estimates) >= 1
     assert res.estimates.label.min() > state.last_estimates.label.max()
 

@@ -1,0 +1,137 @@
+"""
+``extended-tracker``: the user command line.
+
+    extended-tracker replay INPUT --output OUTPUT [--scan-topic T] [--config YAML] [--plot PNG]
+    extended-tracker simulate OUTPUT [--scene NAME] [--seed N] [--duration S]
+    extended-tracker real [--data DIR] [--out DIR]
+    extended-tracker bench [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from pathlib import Path
+import sys
+
+from .errors import ExtendedTrackerError
+
+# bags in ../shared/data/real with more than one LaserScan topic: the one to replay
+REAL_TOPICS = {
+    'freiburg_corridor_stationary_sick': '/RAWLASER1',
+    'mir_legs_test_stationary': 'front_laser_link',
+    'obstacle_detector_scans_demo': '/front_scan',
+}
+
+
+def _config(path):
+    from .config import TrackerConfig
+
+    if path is None:
+        return TrackerConfig()
+    from .configio import load_yaml
+
+    return load_yaml(path)
+
+
+def cmd_replay(args) -> int:
+    from .replay import replay
+
+    cfg = _config(args.config)
+    summary = replay(args.input, args.output, cfg, args.scan_topic, args.plot,
+                     progress=not args.quiet)
+    for line in summary.lines():
+        print(line)
+    print(f'output bag       {summary.output}')
+    if summary.plot:
+        print(f'plot             {summary.plot}')
+    return 0
+
+
+SCENES = ('tutorial', 'occlusion', 'mixed_traffic', 'walls')
+
+
+def cmd_simulate(args) -> int:
+    from .sim.bag import write_sim_bag
+
+    info = write_sim_bag(args.output, args.scene, args.seed, args.duration)
+    print(json.dumps(info, indent=2))
+    return 0
+
+
+def cmd_real(args) -> int:
+    from .replay import replay
+
+    data = Path(args.data)
+    if not data.is_dir():
+        print(f'no real recordings at {data}; nothing to do', file=sys.stderr)
+        return 0
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cfg = _config(args.config)
+    print(f'{"bag":48s} {"scans":>6s} {"det/scan":>8s} {"ids":>5s} {"moving":>6s} '
+          f'{"mean n":>6s} {"ms med":>7s} {"ms p99":>7s}')
+    for folder in sorted(p for p in data.iterdir() if p.is_dir()):
+        target = out / f'{folder.name}_tracks'
+        if target.exists():
+            import shutil
+
+            shutil.rmtree(target)
+        s = replay(folder, target, cfg, REAL_TOPICS.get(folder.name),
+                   out / f'{folder.name}.png', progress=False)
+        print(f'{folder.name:48s} {s.scans:6d} {s.valid_detections / max(s.scans, 1):8.1f} '
+              f'{s.distinct_ids:5d} {s.moving_ids:6d} {s.mean_count:6.2f} '
+              f'{s.median_ms:7.2f} {s.p99_ms:7.2f}')
+    print(f'bags and PNGs in {out}')
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from .bench import main as bench_main
+
+    return bench_main(['--quick'] if args.quick else [])
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog='extended-tracker', description=__doc__.split('\n')[1])
+    sub = p.add_subparsers(dest='command', required=True)
+    r = sub.add_parser('replay', help='track the LaserScans of a bag into a new MCAP bag')
+    r.add_argument('input', help='ROS 2 bag folder (sqlite3 or MCAP) or ROS 1 .bag')
+    r.add_argument('--output', '-o', required=True, help='new ROS 2 bag folder (MCAP)')
+    r.add_argument('--scan-topic', help='LaserScan topic when the bag has several')
+    r.add_argument('--config', help='YAML config (plain sections or ros__parameters form)')
+    r.add_argument('--plot', help='write a PNG of the run')
+    r.add_argument('--quiet', action='store_true', help='no progress bar')
+    r.set_defaults(func=cmd_replay)
+    s = sub.add_parser('simulate', help='write a simulated scan bag with ground truth')
+    s.add_argument('output')
+    s.add_argument('--scene', choices=SCENES, default='tutorial')
+    s.add_argument('--seed', type=int, default=0)
+    s.add_argument('--duration', type=float, default=12.0)
+    s.set_defaults(func=cmd_simulate)
+    real = sub.add_parser('real', help='replay every bag of a folder of real recordings')
+    real.add_argument('--data', default=os.path.join('..', 'shared', 'data', 'real'))
+    real.add_argument('--out', default=os.path.join('out', 'real'))
+    real.add_argument('--config')
+    real.set_defaults(func=cmd_real)
+    b = sub.add_parser('bench', help='print per-scan timing figures')
+    b.add_argument('--quick', action='store_true')
+    b.set_defaults(func=cmd_bench)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ExtendedTrackerError as err:
+        print(f'extended-tracker: error: {err}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print('extended-tracker: interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""
+What the tracker publishes, as plain nested data (no ROS imports).
+
+:func:`tracks_data` describes an ``extended_tracker_msgs/ExtendedObjectArray`` and
+:func:`markers_data` a ``visualization_msgs/MarkerArray`` for one :class:`StepResult`.
+The node turns them into rclpy messages and the bag replay into rosbags messages, so both
+publish the same thing by construction. Field names are the message fields.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SHAPE_ELLIPSE = 0
+SHAPE_RECTANGLE = 1
+# visualization_msgs/Marker constants
+ARROW, LINE_STRIP, TEXT_VIEW_FACING = 0, 4, 9
+ADD, DELETE = 0, 2
+MARKER_NAMESPACES = ('outline', 'label', 'velocity')
+ELLIPSE_SEGMENTS = 32
+
+
+def _time(stamp_ns: int) -> dict:
+    return {'sec': int(stamp_ns // 1_000_000_000), 'nanosec': int(stamp_ns % 1_000_000_000)}
+
+
+def header_data(stamp_ns: int, frame_id: str) -> dict:
+    return {'stamp': _time(stamp_ns), 'frame_id': frame_id}
+
+
+def shapes(estimates, extraction_cfg) -> np.ndarray:
+    """SHAPE_RECTANGLE for long or elongated objects (cars), else SHAPE_ELLIPSE."""
+    if not len(estimates):
+        return np.zeros(0, dtype=np.uint8)
+    length, _ = estimates.rectangle()
+    major, minor, _ = estimates.axes()
+    elong = major / np.maximum(minor, 1e-6)
+    rect = (length >= extraction_cfg.rectangle_length) | \
+        (elong >= extraction_cfg.rectangle_elongation)
+    return np.where(rect, SHAPE_RECTANGLE, SHAPE_ELLIPSE).astype(np.uint8)
+
+
+def tracks_data(result, cfg) -> dict:
+    """``ExtendedObjectArray`` of one step result."""
+    e = result.estimates
+    major, minor, yaw = e.axes()
+    length, width = e.rectangle()
+    shape = shapes(e, cfg.extraction)
+    objects = []
+    for j in range(len(e)):
+        objects.append({
+            'id': int(e.label[j]),
+            'existence': float(e.existence[j]),
+            'position': {'x': float(e.m[j, 0]), 'y': float(e.m[j, 1]), 'z': 0.0},
+            'velocity': {'x': float(e.m[j, 2]), 'y': float(e.m[j, 3]), 'z': 0.0},
+            'position_covariance': e.P[j, :2, :2].astype(float).ravel(),
+            'extent': e.X[j].astype(float).ravel(),
+            'semi_major': float(major[j]),
+            'semi_minor': float(minor[j]),
+            'orientation': float(yaw[j]),
+            'length': float(length[j]),
+            'width': float(width[j]),
+            'shape': int(shape[j]),
+            'measurement_rate': float(e.rate[j]),
+            'num_detections': int(e.num_detections[j]),
+            'visibility': float(np.clip(e.visibility[j], 0.0, 1.0)),
+        })
+    return {
+        'header': header_data(result.stamp_ns, result.frame_id),
+        'objects': objects,
+        'expected_count': float(result.expected_count),
+        'cardinality': np.asarray(result.cardinality, dtype=float),
+        'num_detections': int(result.diagnostics.get('detections', 0)),
+        'processing_time': float(result.processing_time),
+    }
+
+
+def id_rgba(label: int) -> dict:
+    """Stable colour of an id (golden-ratio hue walk)."""
+    import colorsys
+
+    h = (int(label) * 0.618033988749895) % 1.0
+    r, g, b = colorsys.hsv_to_rgb(h, 0.75, 0.95)
+    return {'r': float(r), 'g': float(g), 'b': float(b), 'a': 1.0}
+
+
+def _pose(x=0.0, y=0.0, z=0.0, yaw=0.0) -> dict:
+    return {'position': {'x': float(x), 'y': float(y), 'z': float(z)},
+            'orientation': {'x': 0.0, 'y': 0.0, 'z': float(math.sin(yaw / 2)),
+                            'w': float(math.cos(yaw / 2))}}
+
+
+def _marker(header, ns, mid, mtype, action, **kw) -> dict:
+    m = {'header': header, 'ns': ns, 'id': int(mid), 'type': mtype, 'action': action,
+         'pose': _pose(), 'scale': {'x': 0.0, 'y': 0.0, 'z': 0.0},
+         'color': {'r': 0.0, 'g': 0.0, 'b': 0.0, 'a': 0.0}, 'points': [], 'text': '',
+         'frame_locked': False}
+    m.update(kw)
+    return m
+
+
+def outline_points(centre, X, rectangle: bool) -> list:
+    """Closed outline: the ellipse (p-c)' X^-1 (p-c) = 1, or the second-moment rectangle."""
+    vals, vecs = np.linalg.eigh(X)
+    vals = np.maximum(vals, 1e-10)
+    a, b = math.sqrt(vals[1]), math.sqrt(vals[0])
+    u, v = vecs[:, 1], vecs[:, 0]
+    if rectangle:
+        L, W = math.sqrt(3.0) * a, math.sqrt(3.0) * b
+        corners = [(1, 1), (-1, 1), (-1, -1), (1, -1), (1, 1)]
+        pts = [centre + s * u * L / 2 + t * v * W / 2 for s, t in corners]
+    else:
+        th = np.linspace(0, 2 * math.pi, ELLIPSE_SEGMENTS + 1)
+        pts = [centre + a * math.cos(t) * u + b * math.sin(t) * v for t in th]
+    return [{'x': float(p[0]), 'y': float(p[1]), 'z': 0.0} for p in pts]
+
+
+def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
+    """
+    ``MarkerArray`` of one step result, and the ids it shows.
+
+    Per object: its outline (ellipse, or rectangle when ``shape`` says so), a text label
+    with the id, a velocity arrow; colours fixed per id. Markers of ids shown before and
+    gone now are deleted (``DELETE`` in each namespace), so RViz keeps no stale ghosts.
+    """
+    e = result.estimates
+    header = header_data(result.stamp_ns, result.frame_id)
+    shape = shapes(e, cfg.extraction)
+    markers = []
+    ids = set()
+    for j in range(len(e)):
+        lab = int(e.label[j])
+        ids.add(lab)
+        col = id_rgba(lab)
+        c = e.m[j, :2]
+        markers.append(_marker(header, 'outline', lab, LINE_STRIP, ADD,
+                               scale={'x': 0.04, 'y': 0.0, 'z': 0.0}, color=col,
+                               points=outline_points(c, e.X[j], shape[j] == SHAPE_RECTANGLE)))
+        markers.append(_marker(header, 'label', lab, TEXT_VIEW_FACING, ADD,
+                               pose=_pose(c[0], c[1], 0.5), text=str(lab),
+                               scale={'x': 0.0, 'y': 0.0, 'z': 0.3}, color=col))
+        tip = c + e.m[j, 2:4]
+        markers.append(_marker(header, 'velocity', lab, ARROW, ADD,
+                               scale={'x': 0.05, 'y': 0.1, 'z': 0.1}, color=col,
+                               points=[{'x': float(c[0]), 'y': float(c[1]), 'z': 0.0},
+                                       {'x': float(tip[0]), 'y': float(tip[1]), 'z': 0.0}]))
+    for lab in sorted(set(previous_ids) - ids):
+        for ns in MARKER_NAMESPACES:
+            markers.append(_marker(header, ns, lab, LINE_STRIP, DELETE))
+    return {'markers': markers}, ids

@@ -1,0 +1,194 @@
+"""
+Bag replay: LaserScans from a bag through :func:`pipeline.step` into a new MCAP bag.
+
+The output holds ``/tracks`` (ExtendedObjectArray) and ``/tracks/markers`` (MarkerArray)
+stamped with the scan stamps, with the message definitions stored so ``ros2 bag play``
+on a Jazzy install replays it. It is written into a temporary folder beside the target
+and renamed into place only when complete: an interrupted replay leaves no bag.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+import os
+from pathlib import Path
+import shutil
+import sys
+import time
+
+import numpy as np
+
+from .bagio import (
+    BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, TRACKS_TYPE,
+)
+from .config import TrackerConfig
+from .messages import markers_data, shapes, tracks_data
+from .pipeline import PipelineState, step
+
+TRACKS_TOPIC = '/tracks'
+MARKERS_TOPIC = '/tracks/markers'
+
+
+@dataclass
+class ReplaySummary:
+    """Figures of a replay."""
+
+    scans: int = 0
+    valid_detections: int = 0
+    distinct_ids: int = 0
+    moving_ids: int = 0
+    mean_count: float = 0.0
+    max_count: int = 0
+    median_ms: float = 0.0
+    p99_ms: float = 0.0
+    events: dict = field(default_factory=dict)
+    topic: str = ''
+    output: str = ''
+    plot: str = ''
+
+    def lines(self) -> list[str]:
+        per_scan = self.valid_detections / max(self.scans, 1)
+        ev = ', '.join(f'{k} {v}' for k, v in sorted(self.events.items())) or 'none'
+        return [
+            f'scans            {self.scans} (topic {self.topic})',
+            f'valid detections {self.valid_detections} ({per_scan:.1f} per scan)',
+            f'distinct ids     {self.distinct_ids} ({self.moving_ids} moved more than 1 m)',
+            f'objects per scan mean {self.mean_count:.2f}, max {self.max_count}',
+            f'time per scan    median {self.median_ms:.2f} ms, p99 {self.p99_ms:.2f} ms',
+            f'events           {ev}',
+        ]
+
+
+class _Progress:
+    """A one-line progress bar on a terminal (nothing when not a terminal)."""
+
+    def __init__(self, total: int, stream=None):
+        self.total = max(total, 1)
+        self.stream = stream or sys.stderr
+        self.on = self.stream.isatty()
+        self.last = 0.0
+
+    def update(self, done: int):
+        now = time.monotonic()
+        if not self.on or (now - self.last < 0.1 and done < self.total):
+            return
+        self.last = now
+        frac = done / self.total
+        bar = '#' * int(30 * frac)
+        self.stream.write(f'\r[{bar:<30}] {done}/{self.total} scans')
+        self.stream.flush()
+
+    def close(self):
+        if self.on:
+            self.stream.write('\n')
+
+
+def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None):
+    """Yield ``(scan_message, StepResult)`` for every LaserScan of a bag, in time order."""
+    reader, conns = open_scans(input_path, scan_topic)
+    try:
+        state = PipelineState.initial(cfg)
+        for conn, _, raw in reader.messages(connections=conns):
+            try:
+                scan = reader.deserialize(raw, conn.msgtype)
+            except Exception as err:  # a corrupt record: say which, stop cleanly
+                msg = f'cannot decode a LaserScan on {conn.topic}: {err}'
+                raise BagError(msg) from err
+            state, result = step(state, scan, cfg)
+            yield scan, result
+    finally:
+        reader.close()
+
+
+def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None = None,
+           plot_path=None, progress: bool = True) -> ReplaySummary:
+    """
+    Replay a bag into a new MCAP bag; optionally draw the run.
+
+    Raises
+    ------
+    BagError
+        When the output exists, or the input is missing, broken or has no usable topic.
+
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    out = Path(output_path)
+    if out.exists():
+        raise BagError(f'output {out} exists; refusing to overwrite it')
+    reader, conns = open_scans(input_path, scan_topic)
+    total = sum(c.msgcount for c in conns)
+    topic = conns[0].topic
+    reader.close()
+    store = message_typestore()
+    tmp = out.parent / f'.{out.name}.partial-{os.getpid()}'
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    summary = ReplaySummary(topic=topic, output=str(out))
+    times, counts, results = [], [], []
+    ids, first_pos, travel = set(), {}, {}
+    bar = _Progress(total) if progress else None
+    prev_ids: set = set()
+    fov = None
+    try:
+        with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
+            c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
+            for k, (scan, res) in enumerate(replay_results(input_path, cfg, scan_topic)):
+                if fov is None and res.event != 'malformed_scan':
+                    fov = _fov(scan)
+                tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
+                mdata, prev_ids = markers_data(res, cfg, prev_ids)
+                markers = build_message(store, MARKERS_TYPE, mdata)
+                writer.write(c_tracks, res.stamp_ns, store.serialize_cdr(tracks, TRACKS_TYPE))
+                writer.write(c_markers, res.stamp_ns,
+                             store.serialize_cdr(markers, MARKERS_TYPE))
+                times.append(res.processing_time)
+                counts.append(len(res.estimates))
+                summary.valid_detections += res.diagnostics.get('detections', 0)
+                if res.event:
+                    summary.events[res.event] = summary.events.get(res.event, 0) + 1
+                for lab, m in zip(res.estimates.label.tolist(), res.estimates.m[:, :2]):
+                    ids.add(lab)
+                    first_pos.setdefault(lab, m.copy())
+                    travel[lab] = max(travel.get(lab, 0.0),
+                                      float(np.linalg.norm(m - first_pos[lab])))
+                if plot_path:
+                    results.append(res)
+                if bar:
+                    bar.update(k + 1)
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    finally:
+        if bar:
+            bar.close()
+    summary.scans = len(times)
+    summary.distinct_ids = len(ids)
+    summary.moving_ids = sum(1 for v in travel.values() if v > 1.0)
+    if times:
+        ms = np.asarray(times) * 1e3
+        summary.median_ms = float(np.median(ms))
+        summary.p99_ms = float(np.percentile(ms, 99))
+        summary.mean_count = float(np.mean(counts))
+        summary.max_count = int(np.max(counts))
+    if plot_path:
+        from .plotting import plot_run
+
+        plot_run(results, plot_path, title=f'{Path(input_path).name} {topic}: '
+                 f'{summary.scans} scans, {summary.distinct_ids} ids', fov=fov,
+                 is_rectangle=lambda e: shapes(e, cfg.extraction) == 1)
+        summary.plot = str(plot_path)
+    return summary
+
+
+def _fov(scan):
+    a0 = float(scan.angle_min)
+    a1 = a0 + float(scan.angle_increment) * (len(scan.ranges) - 1)
+    rmax = float(scan.range_max)
+    if not math.isfinite(rmax) or rmax <= 0:
+        return None
+    return min(a0, a1), max(a0, a1), rmax
