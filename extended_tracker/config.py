@@ -135,8 +135,8 @@ class ExtractionConfig:
                             '', 1, 1000)
     rectangle_length: float = _f(1.2, 'objects longer than this are drawn as rectangles', 'm',
                                  0.0, 100.0)
-    rectangle_elongation: float = _f(1.8, 'or more elongated than this (semi-axes ratio)', '',
-                                     1.0, 100.0)
+    rectangle_elongation: float = _f(2.5, 'or more elongated than this (semi-axes ratio) and '
+                                     'at least half that long', '', 1.0, 100.0)
 
 
 @dataclass(frozen=True)

@@ -35,5 +35,29 @@ def load_yaml(path) -> TrackerConfig:
 
 
 def dump_ros_yaml(cfg: TrackerConfig, node_name: str = '/**') -> str:
-    """Return ``cfg`` as a ROS 2 parameters file (``/**: ros__parameters:`` form)."""
-    return yaml.safe_dump({node_name: {'ros__parameters': to_dict(cfg)}}, sort_keys=False)
+    """
+    ``cfg`` as a ROS 2 parameters file (``/**: ros__parameters:``), one comment per field
+    with its description, unit and valid range.
+    """
+    from dataclasses import fields, is_dataclass
+
+    lines = [f'{node_name}:', '  ros__parameters:']
+    for section in fields(cfg):
+        sub = getattr(cfg, section.name)
+        if not is_dataclass(sub):
+            continue
+        doc = (type(sub).__doc__ or '').strip().splitlines()[0]
+        lines.append(f'    {section.name}:  # {doc}')
+        for f in fields(sub):
+            meta = f.metadata
+            value = yaml.safe_dump(getattr(sub, f.name), default_flow_style=True).strip()
+            value = value.removesuffix('...').strip()
+            rng = ''
+            if meta.get('choices'):
+                rng = ' {' + ', '.join(meta['choices']) + '}'
+            elif meta.get('min') is not None:
+                lo = '(' if meta.get('lo_open') else '['
+                rng = f' {lo}{meta["min"]:g}, {meta["max"]:g}]'
+            unit = f' [{meta["unit"]}]' if meta.get('unit') else ''
+            lines.append(f'      {f.name}: {value}  # {meta["description"]}{unit}{rng}')
+    return '\n'.join(lines) + '\n'

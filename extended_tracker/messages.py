@@ -31,14 +31,19 @@ def header_data(stamp_ns: int, frame_id: str) -> dict:
 
 
 def shapes(estimates, extraction_cfg) -> np.ndarray:
-    """SHAPE_RECTANGLE for long or elongated objects (cars), else SHAPE_ELLIPSE."""
+    """
+    SHAPE_RECTANGLE for long objects, or elongated ones at least half that long (cars,
+    bicycles); SHAPE_ELLIPSE otherwise (a pedestrian's one-sided contour is elongated
+    but short).
+    """
     if not len(estimates):
         return np.zeros(0, dtype=np.uint8)
     length, _ = estimates.rectangle()
     major, minor, _ = estimates.axes()
     elong = major / np.maximum(minor, 1e-6)
-    rect = (length >= extraction_cfg.rectangle_length) | \
-        (elong >= extraction_cfg.rectangle_elongation)
+    long_ = length >= extraction_cfg.rectangle_length
+    rect = long_ | ((elong >= extraction_cfg.rectangle_elongation)
+                    & (length >= 0.5 * extraction_cfg.rectangle_length))
     return np.where(rect, SHAPE_RECTANGLE, SHAPE_ELLIPSE).astype(np.uint8)
 
 

@@ -1,0 +1,180 @@
+"""
+The live node: ``ros2 run extended_tracker tracker_node``.
+
+Subscribes to ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, remappable) and, for
+every scan, publishes ``tracks`` (extended_tracker_msgs/ExtendedObjectArray),
+``tracks/markers`` (visualization_msgs/MarkerArray) and ``tracks/diagnostics``
+(diagnostic_msgs/DiagnosticArray), all stamped with the scan's stamp and frame. A thin
+shell around :func:`extended_tracker.pipeline.step`, the same function the bag replay
+calls.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from extended_tracker_msgs.msg import ExtendedObjectArray
+from rcl_interfaces.msg import (
+    FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult,
+)
+import rclpy
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import MarkerArray
+
+from ..config import from_flat, iter_leaves, to_flat, TrackerConfig
+from ..errors import ConfigError
+from ..messages import markers_data, tracks_data
+from ..pipeline import PipelineState, step
+from .convert import fill
+
+NODE_NAME = 'extended_tracker'
+_PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
+          'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
+          'list': ParameterType.PARAMETER_DOUBLE_ARRAY}
+
+
+def parameter_descriptors(cfg: TrackerConfig | None = None) -> dict:
+    """``{dotted_name: (default, ParameterDescriptor)}`` for every configuration field."""
+    cfg = cfg or TrackerConfig()
+    out = {}
+    for name, f, value in iter_leaves(cfg):
+        meta = f.metadata
+        kind = f.type if isinstance(f.type, str) else f.type.__name__
+        desc = ParameterDescriptor(name=name, type=_PTYPE[kind])
+        unit = f' [{meta["unit"]}]' if meta['unit'] else ''
+        text = meta['description'] + unit
+        if meta['choices']:
+            text += f'; one of {", ".join(meta["choices"])}'
+        desc.description = text
+        if kind == 'float' and meta['min'] is not None and meta['max'] is not None:
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=float(meta['min']), to_value=float(meta['max']), step=0.0)]
+        if kind == 'int' and meta['min'] is not None and meta['max'] is not None:
+            desc.integer_range = [IntegerRange(
+                from_value=int(meta['min']), to_value=int(meta['max']), step=1)]
+        out[name] = (value, desc)
+    return out
+
+
+class TrackerNode(Node):
+    """Extended object tracker on one LaserScan topic."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        for name, (default, desc) in parameter_descriptors().items():
+            if isinstance(default, list):
+                self.declare_parameter(name, rclpy.Parameter.Type.DOUBLE_ARRAY, desc)
+            else:
+                self.declare_parameter(name, default, desc)
+        self.cfg = self._read_config()
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.state = PipelineState.initial(self.cfg)
+        self.marker_ids: set = set()
+        self.counts: dict = {}
+        self.scans = 0
+        reliable = QoSProfile(depth=10)
+        self.pub_tracks = self.create_publisher(ExtendedObjectArray, 'tracks', reliable)
+        self.pub_markers = self.create_publisher(MarkerArray, 'tracks/markers', reliable)
+        self.pub_diag = self.create_publisher(DiagnosticArray, 'tracks/diagnostics', reliable)
+        self.sub = self.create_subscription(LaserScan, 'scan', self.on_scan,
+                                            qos_profile_sensor_data)
+        self.get_logger().info(
+            f'tracking {self.sub.topic_name} in {self.cfg.model.mode} mode, p_D '
+            f'{self.cfg.detection.model}, background '
+            f'{"on" if self.cfg.background.enabled else "off"}')
+
+    # --- parameters ---
+    def _read_config(self) -> TrackerConfig:
+        flat = {}
+        for name, default in to_flat(TrackerConfig()).items():
+            try:
+                value = self.get_parameter(name).value
+            except ParameterUninitializedException:      # an array declared without value
+                value = None
+            flat[name] = list(value) if isinstance(default, list) and value is not None else (
+                default if value is None else value)
+        return from_flat(flat)           # raises ConfigError with the reason
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        flat = to_flat(self.cfg)
+        for p in params:
+            if p.name not in flat:
+                continue
+            flat[p.name] = list(p.value) if isinstance(flat[p.name], list) else p.value
+        try:
+            new_cfg = from_flat(flat)
+        except ConfigError as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        self.cfg = new_cfg
+        return SetParametersResult(successful=True)
+
+    # --- the callback ---
+    def on_scan(self, msg: LaserScan) -> None:
+        try:
+            self.state, result = step(self.state, msg, self.cfg)
+        except Exception as err:  # a bug must not take the node down; say it loudly
+            self._count('internal_error', f'pipeline failed on a scan: {err!r}', error=True)
+            return
+        self.scans += 1
+        if result.event:
+            self._count(result.event, result.error or result.event.replace('_', ' '))
+        tracks = fill(ExtendedObjectArray(), tracks_data(result, self.cfg))
+        mdata, self.marker_ids = markers_data(result, self.cfg, self.marker_ids)
+        markers = fill(MarkerArray(), mdata)
+        self.pub_tracks.publish(tracks)
+        self.pub_markers.publish(markers)
+        self.pub_diag.publish(self._diagnostics(result))
+
+    def _count(self, kind: str, text: str, error: bool = False) -> None:
+        n = self.counts.get(kind, 0) + 1
+        self.counts[kind] = n
+        log = self.get_logger().error if error else self.get_logger().warning
+        if n == 1:
+            log(f'{kind}: {text} (counted; further ones are summarised every 10 s)')
+        else:
+            log(f'{kind}: {n} so far; last: {text}', throttle_duration_sec=10.0)
+
+    def _diagnostics(self, result) -> DiagnosticArray:
+        arr = DiagnosticArray()
+        arr.header.stamp.sec = int(result.stamp_ns // 1_000_000_000)
+        arr.header.stamp.nanosec = int(result.stamp_ns % 1_000_000_000)
+        arr.header.frame_id = result.frame_id
+        st = DiagnosticStatus()
+        st.name = f'{self.get_name()}: tracker'
+        st.hardware_id = result.frame_id
+        st.level = DiagnosticStatus.WARN if result.event else DiagnosticStatus.OK
+        st.message = result.event or 'ok'
+        values = dict(result.diagnostics)
+        values['processing_time_ms'] = round(result.processing_time * 1e3, 3)
+        values['objects'] = len(result.estimates)
+        values['scans'] = self.scans
+        for k, v in sorted(self.counts.items()):
+            values[f'count_{k}'] = v
+        st.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        arr.status = [st]
+        return arr
+
+
+def main(args=None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = TrackerNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as err:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid configuration: {err}')
+        raise SystemExit(2) from err
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+__all__ = ['TrackerNode', 'main', 'parameter_descriptors', 'fields']

@@ -1,0 +1,260 @@
+"""
+The node, launch-free: node under test and a probe node in one process, on a private
+Context with a SingleThreadedExecutor and bounded spins (DDS on loopback, see conftest).
+"""
+
+import copy
+from pathlib import Path
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import LaserScan
+from extended_tracker_msgs.msg import ExtendedObjectArray
+from visualization_msgs.msg import MarkerArray
+
+from extended_tracker.config import from_dict, to_dict, to_flat, TrackerConfig
+from extended_tracker.configio import dump_ros_yaml, load_yaml
+from extended_tracker.ros.convert import fill, to_plain
+from extended_tracker.ros.node import parameter_descriptors, TrackerNode
+from extended_tracker.sim.bag import scan_data, write_sim_bag
+from extended_tracker.sim.laser import simulate, tutorial_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+YAML = ROOT / 'config' / 'tracker.yaml'
+SPIN_LIMIT_S = 5.0          # per expected message; loopback delivery takes milliseconds
+
+
+class Harness:
+    """A TrackerNode and a probe node that publishes scans and records the outputs."""
+
+    def __init__(self, args=None, overrides=None):
+        self.ctx = Context()
+        rclpy.init(context=self.ctx, args=args)
+        kw = {'context': self.ctx}
+        if overrides:
+            kw['parameter_overrides'] = overrides
+        self.node = TrackerNode(**kw)
+        self.probe = rclpy.create_node('probe', context=self.ctx)
+        self.tracks, self.markers = [], []
+        self.probe.create_subscription(ExtendedObjectArray, 'tracks', self.tracks.append, 50)
+        self.probe.create_subscription(MarkerArray, 'tracks/markers', self.markers.append, 50)
+        from rclpy.qos import qos_profile_sensor_data
+        self.pub = self.probe.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
+        self.ex = SingleThreadedExecutor(context=self.ctx)
+        self.ex.add_node(self.node)
+        self.ex.add_node(self.probe)
+        deadline = time.monotonic() + SPIN_LIMIT_S
+        while self.pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+            self.ex.spin_once(timeout_sec=0.01)
+
+    def send(self, msg, expect_reply=True):
+        n = len(self.tracks)
+        self.pub.publish(msg)
+        deadline = time.monotonic() + SPIN_LIMIT_S
+        while time.monotonic() < deadline:
+            self.ex.spin_once(timeout_sec=0.01)
+            if expect_reply and len(self.tracks) > n and len(self.markers) > n:
+                return self.tracks[-1]
+            if not expect_reply and self.node.scans >= 0 and time.monotonic() > deadline - 4.5:
+                return None
+        if expect_reply:
+            raise AssertionError('no reply within the spin limit')
+        return None
+
+    def close(self):
+        self.ex.shutdown()
+        self.node.destroy_node()
+        self.probe.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+def ros_scan(scan):
+    return fill(LaserScan(), scan_data(scan))
+
+
+@pytest.fixture
+def harness():
+    h = Harness(overrides=[Parameter('background.enabled', value=False)])
+    yield h
+    h.close()
+
+
+def test_tracks_against_simulator_truth(harness):
+    data = simulate(tutorial_scene(), 6.0, seed=2)
+    for scan, truth in data:
+        out = harness.send(ros_scan(scan))
+        assert out.header.stamp.sec == scan.header.stamp.sec
+        assert out.header.stamp.nanosec == scan.header.stamp.nanosec
+        assert out.header.frame_id == 'laser'
+    # after the start-up scans every true object has one estimate within 0.5 m
+    last = harness.tracks[-1]
+    scan, truth = data[-1]
+    pos = np.array([[o.position.x, o.position.y] for o in last.objects])
+    for t in truth:
+        assert np.min(np.linalg.norm(pos - t.centre, axis=1)) < 0.5
+    assert len(last.objects) == len(truth)
+    ids = {o.id for o in last.objects}
+    assert len(ids) == len(last.objects)
+    # ids stable over the last 2 s
+    for arr in harness.tracks[-20:]:
+        assert {o.id for o in arr.objects} == ids
+    assert abs(last.expected_count - len(truth)) < 0.5
+    assert len(last.cardinality) == TrackerConfig().model.n_max + 1
+    assert last.num_detections > 0 and last.processing_time > 0
+
+
+def test_markers_outline_label_velocity_and_deletion(harness):
+    data = simulate(tutorial_scene(), 3.0, seed=1)
+    for scan, _ in data:
+        harness.send(ros_scan(scan))
+    m = harness.markers[-1].markers
+    n_obj = len(harness.tracks[-1].objects)
+    assert sorted({x.ns for x in m}) == ['label', 'outline', 'velocity']
+    assert sum(1 for x in m if x.ns == 'outline') == n_obj
+    assert all(len(x.points) == 33 for x in m if x.ns == 'outline')   # closed ellipses
+    assert all(x.header.stamp == harness.tracks[-1].header.stamp for x in m)
+    # an empty scan: tracks coast; then scans with nothing at all for a while: the
+    # vanished ids' markers are deleted
+    empty = copy.deepcopy(data[-1][0])
+    ranges = np.full(len(empty.ranges), np.inf, dtype=np.float32)
+    for k in range(40):
+        s = copy.deepcopy(empty)
+        ns = s.header.stamp.sec * 10**9 + s.header.stamp.nanosec + (k + 1) * 100_000_000
+        s.header.stamp.sec, s.header.stamp.nanosec = ns // 10**9, ns % 10**9
+        s.ranges = ranges
+        harness.send(ros_scan(s))
+    deletes = [x for arr in harness.markers[-40:] for x in arr.markers if x.action == 2]
+    assert {x.ns for x in deletes} == {'outline', 'label', 'velocity'}
+    assert len(harness.tracks[-1].objects) == 0
+    assert not [x for x in harness.markers[-1].markers if x.action == 0]
+
+
+def test_robustness_every_case_counted_never_a_crash(harness):
+    data = simulate(tutorial_scene(), 2.0, seed=0)
+    scans = [ros_scan(s) for s, _ in data]
+    for s in scans[:10]:
+        harness.send(s)
+    bad = copy.deepcopy(scans[10])
+    bad.angle_increment = 0.0                             # malformed
+    out = harness.send(bad)
+    assert len(out.objects) == len(harness.tracks[-2].objects)   # estimates kept
+    short = copy.deepcopy(scans[11])
+    short.ranges = short.ranges[:10]                      # len(ranges) inconsistent
+    harness.send(short)
+    other = copy.deepcopy(scans[12])
+    other.header.frame_id = 'rear_laser'                  # a second frame
+    out = harness.send(other)
+    assert out.header.frame_id == 'laser'
+    harness.send(scans[12])
+    harness.send(scans[3])                                # stamp goes backwards
+    gap = copy.deepcopy(scans[13])
+    gap.header.stamp.sec += 100                           # huge gap
+    harness.send(gap)
+    nan = copy.deepcopy(scans[14])
+    nan.header.stamp.sec += 100
+    nan.ranges = [float('nan')] * len(nan.ranges)          # all invalid: predict only
+    harness.send(nan)
+    c = harness.node.counts
+    assert c.get('malformed_scan') == 2 and c.get('foreign_frame') == 1
+    assert c.get('time_backwards') == 1 and c.get('time_gap') == 1
+    assert 'internal_error' not in c
+    # every scan got its publication, valid or not
+    assert len(harness.tracks) == harness.node.scans == 17      # 10 good + 7 special
+
+
+def test_parameters_from_the_yaml_file_and_descriptors():
+    h = Harness(args=['--ros-args', '--params-file', str(YAML)])
+    try:
+        assert h.node.cfg == TrackerConfig()
+        names = {p for p in h.node._parameters if '.' in p}
+        assert names == set(to_flat(TrackerConfig()))
+        d = h.node.describe_parameters(['model.rho'])[0]
+        assert 'rho X + R' in d.description
+        assert d.floating_point_range[0].to_value == 4.0
+    finally:
+        h.close()
+
+
+def test_changed_yaml_is_loaded(tmp_path):
+    data = yaml.safe_load(YAML.read_text())
+    data['/**']['ros__parameters']['model']['mode'] = 'phd'
+    data['/**']['ros__parameters']['partition']['d_max'] = 1.2
+    path = tmp_path / 'p.yaml'
+    path.write_text(yaml.safe_dump(data))
+    h = Harness(args=['--ros-args', '--params-file', str(path)])
+    try:
+        assert h.node.cfg.model.mode == 'phd' and h.node.cfg.partition.d_max == 1.2
+    finally:
+        h.close()
+
+
+def test_invalid_values_are_refused_with_a_reason(harness):
+    res = harness.node.set_parameters([Parameter('model.rho', value=-1.0)])[0]
+    assert not res.successful and res.reason
+    res = harness.node.set_parameters([Parameter('model.mode', value='kalman')])[0]
+    assert not res.successful and 'cphd' in res.reason
+    res = harness.node.set_parameters([Parameter('partition.d_min', value=5.0)])[0]
+    assert not res.successful and 'd_min' in res.reason
+    res = harness.node.set_parameters([Parameter('model.mode', value='phd')])[0]
+    assert res.successful and harness.node.cfg.model.mode == 'phd'
+
+
+def test_invalid_value_at_start_up_is_refused():
+    with pytest.raises(Exception, match='model.mode'):
+        Harness(overrides=[Parameter('model.mode', value='kalman')])
+    rclpy.try_shutdown()
+
+
+def test_yaml_descriptors_and_dataclass_agree():
+    assert load_yaml(YAML) == TrackerConfig()
+    header = ''.join(line + '\n' for line in YAML.read_text().splitlines()[:3])
+    assert YAML.read_text() == header + dump_ros_yaml(TrackerConfig()), \
+        'config/tracker.yaml is stale: regenerate it from extended_tracker.configio'
+    desc = parameter_descriptors()
+    assert set(desc) == set(to_flat(TrackerConfig()))
+    for name, (default, d) in desc.items():
+        assert d.description, name
+    nested = yaml.safe_load(YAML.read_text())['/**']['ros__parameters']
+    assert nested == to_dict(TrackerConfig())
+
+
+def test_node_and_replay_publish_the_same(tmp_path):
+    from rosbags.rosbag2 import Reader
+
+    from extended_tracker.bagio import message_typestore
+    from extended_tracker.replay import replay
+
+    bag = tmp_path / 'scans'
+    write_sim_bag(bag, 'tutorial', seed=3, duration=3.0)
+    cfg = from_dict({'background': {'enabled': False}})
+    replay(bag, tmp_path / 'out', cfg, progress=False)
+    store = message_typestore()
+    from_bag = {'/tracks': [], '/tracks/markers': []}
+    with Reader(tmp_path / 'out') as reader:
+        for conn, _, raw in reader.messages():
+            from_bag[conn.topic].append(to_plain(store.deserialize_cdr(raw, conn.msgtype)))
+    h = Harness(overrides=[Parameter('background.enabled', value=False)])
+    try:
+        for scan, _ in simulate(tutorial_scene(), 3.0, seed=3):
+            h.send(ros_scan(scan))
+        live_tracks = [to_plain(m) for m in h.tracks]
+        live_markers = [to_plain(m) for m in h.markers]
+    finally:
+        h.close()
+    assert len(live_tracks) == len(from_bag['/tracks']) == 30
+
+    def strip(d):
+        d = dict(d)
+        d.pop('processing_time')
+        return d
+
+    for a, b in zip(live_tracks, from_bag['/tracks']):
+        assert strip(a) == strip(b)
+    assert live_markers == from_bag['/tracks/markers']
