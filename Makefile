@@ -6,13 +6,34 @@ PY := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 unexport ROS_LOCALHOST_ONLY
 
-.PHONY: setup test clean
+.PHONY: setup test demo real bench config clean
 
 setup:
 	@EXTENDED_TRACKER_VENV=$(VENV) bash tools/bootstrap.sh
 
 test: setup
 	@unset ROS_LOCALHOST_ONLY; $(PY) -m pytest -q test
+
+REAL := ../shared/data/real
+TRACKER := $(VENV)/bin/extended-tracker
+
+demo: setup
+	@rm -rf out/demo && mkdir -p out/demo
+	$(TRACKER) replay bags/demo --output out/demo/demo_tracks --plot out/demo/demo.png
+	@if [ -d $(REAL)/legtracker_demo_stationary_simple_environment ]; then \
+	  echo; echo 'real recording: leg_tracker demo (people at leg height, walls, furniture)'; \
+	  $(TRACKER) replay $(REAL)/legtracker_demo_stationary_simple_environment \
+	    --output out/demo/legtracker_tracks --plot out/demo/legtracker.png; \
+	fi
+
+real: setup
+	$(TRACKER) real --data $(REAL) --out out/real
+
+bench: setup
+	$(TRACKER) bench
+
+config: setup
+	$(PY) -m extended_tracker.configio > config/tracker.yaml
 
 clean:
 	rm -rf build out .pytest_cache .hypothesis

@@ -155,8 +155,8 @@ def open_scans(path, scan_topic: str | None = None):
     scans = [c for c in reader.connections if c.msgtype == SCAN_TYPE]
     topics = sorted({c.topic for c in scans})
     if not topics:
-        reader.close()
         others = sorted({f'{c.topic} ({c.msgtype})' for c in reader.connections})
+        reader.close()
         raise BagError(f'no sensor_msgs/LaserScan topic in {p}; it has: {", ".join(others)}')
     if scan_topic is not None:
         want = {scan_topic, '/' + scan_topic.lstrip('/'), scan_topic.lstrip('/')}

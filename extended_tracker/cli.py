@@ -49,7 +49,7 @@ def cmd_replay(args) -> int:
     return 0
 
 
-SCENES = ('tutorial', 'occlusion', 'mixed_traffic', 'walls')
+SCENES = ('demo', 'tutorial', 'occlusion', 'mixed_traffic', 'walls')
 
 
 def cmd_simulate(args) -> int:
@@ -106,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=cmd_replay)
     s = sub.add_parser('simulate', help='write a simulated scan bag with ground truth')
     s.add_argument('output')
-    s.add_argument('--scene', choices=SCENES, default='tutorial')
+    s.add_argument('--scene', choices=SCENES, default='demo')
     s.add_argument('--seed', type=int, default=0)
     s.add_argument('--duration', type=float, default=12.0)
     s.set_defaults(func=cmd_simulate)

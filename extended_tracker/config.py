@@ -165,6 +165,8 @@ class BackgroundConfig:
                             0.0, 1e5, lo_open=True)
     confirm_time: float = _f(1.0, 'a beam must return the same range this long to be background',
                              's', 0.0, 1e4)
+    warmup: float = _f(1.5, 'after start-up only learn the background this long',
+                       's', 0.0, 1e4)
     track_gate: float = _f(0.5, 'returns this close to a confirmed track are never background',
                            'm', 0.0, 10.0)
     moved_distance: float = _f(0.5, 'a track that moved this far protects its returns for good',

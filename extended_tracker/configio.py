@@ -61,3 +61,21 @@ def dump_ros_yaml(cfg: TrackerConfig, node_name: str = '/**') -> str:
             unit = f' [{meta["unit"]}]' if meta.get('unit') else ''
             lines.append(f'      {f.name}: {value}  # {meta["description"]}{unit}{rng}')
     return '\n'.join(lines) + '\n'
+
+
+YAML_HEADER = (
+    '# extended_tracker: the documented default configuration, generated from\n'
+    '# extended_tracker/config.py (test/test_node.py keeps them equal).\n'
+    '# ros2 run extended_tracker tracker_node --ros-args --params-file config/tracker.yaml\n'
+)
+
+
+def default_yaml() -> str:
+    """The text of ``config/tracker.yaml``: regenerate with ``make config``."""
+    return YAML_HEADER + dump_ros_yaml(TrackerConfig())
+
+
+if __name__ == '__main__':
+    import sys
+
+    sys.stdout.write(default_yaml())

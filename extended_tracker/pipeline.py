@@ -52,6 +52,7 @@ class PipelineState:
     last_estimates: Estimates = field(default_factory=Estimates.empty)
     last_log_card: np.ndarray | None = None
     scans: int = 0
+    elapsed: float = 0.0
 
     @staticmethod
     def initial(cfg: TrackerConfig) -> 'PipelineState':
@@ -99,7 +100,8 @@ class StepResult:
 
 
 def _diag_template():
-    d = {'detections': 0, 'background_dropped': 0, 'left_view': 0, 'partitions': 0, 'cells': 0, 'pairs': 0,
+    d = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
+         'partitions': 0, 'cells': 0, 'pairs': 0,
          'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
          'capped_components': 0, 'beams': 0}
     d.update({f'masked_{k}': 0 for k in INVALID_KINDS})
@@ -195,6 +197,12 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         bg_points = points[~keep]
         points = points[keep]
         diag['background_dropped'] = int((~keep).sum())
+        if state.elapsed + dt <= cfg.background.warmup:
+            # warm-up: learn the background before tracking anything, so walls are never
+            # tracked; the filter runs predict-only steps meanwhile
+            diag['warmup'] = 1
+            bg_points = np.vstack([bg_points, points])
+            points = np.zeros((0, 2))
 
     pred = predict_state(filt, dt, cfg)
     vis = detection_model(pred.mixture, sp, cfg)
@@ -220,7 +228,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     card = np.exp(new_filter.log_card)
     new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,
                         frame_id=frame, last_estimates=estimates,
-                        last_log_card=new_filter.log_card, scans=state.scans + 1)
+                        last_log_card=new_filter.log_card, scans=state.scans + 1,
+                        elapsed=state.elapsed + dt)
     result = StepResult(now, frame, estimates, card, float(np.sum(np.arange(len(card)) * card)),
                         points, bg_points, diag, event, None, 0.0)
     result.processing_time = time.perf_counter() - t0

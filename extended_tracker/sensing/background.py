@@ -10,7 +10,8 @@ the same range:
 
 - with no background yet, a candidate that persists ``confirm_time`` becomes it;
 - a candidate *farther* than ``b`` (something moved away and revealed what is behind)
-  replaces it after ``confirm_time``; "no return" counts as farther and clears ``b``;
+  replaces it after ``confirm_time``;
+- a beam with no return (a dropout, or nothing in range) changes nothing;
 - a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
   it only after ``forget_time``, so people pausing briefly are not learned.
 
@@ -97,18 +98,19 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # refine the background where it is seen (exponential smoothing, time constant)
         gain = min(1.0, dt / cfg.learn_time)
         b = np.where(is_bg, b + gain * (r - b), b)
-        # candidates: same range as before (or still no return) keeps ageing
-        same = (np.isfinite(r) & np.isfinite(c) & (np.abs(r - c) <= margin)) | \
-            (~np.isfinite(r) & ~np.isfinite(c) & ~np.isnan(c))
-        learn = ~is_bg & ~(protected & known)
-        age = np.where(learn & same, age + dt, 0.0)
-        c = np.where(learn & same & np.isfinite(r), c + gain * (r - c), np.where(learn, r, c))
-        c = np.where(learn & ~np.isfinite(r), np.inf, c)
+        # candidates: a beam returning the same range as before keeps ageing; a beam with
+        # no return (dropout, or nothing in range) tells nothing and changes nothing
+        seen = np.isfinite(r)
+        same = seen & np.isfinite(c) & (np.abs(r - c) <= margin)
+        learn = seen & ~is_bg & ~(protected & known)
+        # ages count scans' dt with a little slack so that k scans of dt reach k * dt
+        age = np.where(learn, np.where(same, age + dt, 0.0), age)
+        c = np.where(learn, np.where(same, c + gain * (r - c), r), c)
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
-        promote = learn & (((farther) & (age >= cfg.confirm_time))
-                           | (nearer & (age >= cfg.forget_time)))
-        b = np.where(promote, np.where(np.isfinite(c), c, np.nan), b)
+        ripe = age >= cfg.confirm_time - 1e-6
+        promote = learn & ((farther & ripe) | (nearer & (age >= cfg.forget_time - 1e-6)))
+        b = np.where(promote, c, b)
         age = np.where(promote, 0.0, age)
     keep = ~is_bg[scan.beam]
     return BackgroundState(state.angles, b, c, age), keep

@@ -16,6 +16,7 @@ SCENE_OF = {
     'occlusion': laser.occlusion_scene,
     'mixed_traffic': laser.mixed_traffic_scene,
     'walls': laser.walls_scene,
+    'demo': laser.demo_scene,
 }
 
 

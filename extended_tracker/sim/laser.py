@@ -276,3 +276,16 @@ def walls_scene() -> Scene:
     )
     person = SimObject((8.0, -3.5), (-0.8, 0.6), t_start=1.0, stops=((4.0, 14.0),))
     return Scene(objects=(person,), walls=walls, laser=LaserSpec())
+
+
+def demo_scene() -> Scene:
+    """
+    The bundled demo: a room with a table and a cabinet. A walks in and stands for 5 s;
+    B walks behind A while A stands (hidden ~1.5 s); C crosses the room diagonally.
+    """
+    room = walls_scene().walls
+    return Scene(objects=(
+        SimObject((8.5, -3.8), (-1.0, 0.8), t_start=0.5, stops=((3.0, 8.0),), kind='A'),
+        SimObject((8.0, -4.0), (0.0, 0.55), t_start=3.0, kind='B'),
+        SimObject((1.0, 4.0), (0.9, -0.55), t_start=1.0, kind='C'),
+    ), walls=room, laser=LaserSpec())

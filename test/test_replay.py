@@ -1,0 +1,178 @@
+"""Bag replay: ROS 1 and ROS 2 inputs, topic choice, refusals, corrupt input, interruption."""
+
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from extended_tracker.bagio import build_message, message_typestore, SCAN_TYPE
+from extended_tracker.config import from_dict
+from extended_tracker.errors import BagError
+from extended_tracker.replay import replay
+from extended_tracker.sim.bag import scan_data
+from extended_tracker.sim.laser import simulate, tutorial_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+CFG = from_dict({'background': {'enabled': False}})
+
+
+def sim_scans(seconds=2.0, seed=0):
+    return [s for s, _ in simulate(tutorial_scene(), seconds, seed=seed)]
+
+
+def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0):
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    store = message_typestore()
+    plugin = StoragePlugin.SQLITE3 if storage == 'sqlite3' else StoragePlugin.MCAP
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        conns = [w.add_connection(t, SCAN_TYPE, typestore=store) for t in topics]
+        for scan in sim_scans(seconds):
+            ns = scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
+            raw = store.serialize_cdr(build_message(store, SCAN_TYPE, scan_data(scan)),
+                                      SCAN_TYPE)
+            for c in conns:
+                w.write(c, ns, raw)
+
+
+def write_ros1(path, seconds=2.0):
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import get_typestore, Stores
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(path) as w:
+        conn = w.add_connection('/base_scan', 'sensor_msgs/msg/LaserScan', typestore=store)
+        for k, scan in enumerate(sim_scans(seconds)):
+            data = scan_data(scan)
+            data['header']['seq'] = k
+            msg = build_message(store, 'sensor_msgs/msg/LaserScan', data)
+            ns = scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
+            w.write(conn, ns, store.serialize_ros1(msg, 'sensor_msgs/msg/LaserScan'))
+
+
+def read_output(path):
+    from rosbags.rosbag2 import Reader
+
+    store = message_typestore()
+    out = {}
+    with Reader(path) as r:
+        conns = {c.topic: c for c in r.connections}
+        assert set(conns) == {'/tracks', '/tracks/markers'}
+        # the custom definition is stored, so a Jazzy `ros2 bag play` can replay it
+        assert 'MSG: extended_tracker_msgs/ExtendedObject' in conns['/tracks'].msgdef.data
+        for c, t, raw in r.messages():
+            msg = store.deserialize_cdr(raw, c.msgtype)
+            out.setdefault(c.topic, []).append((t, msg))
+    return out
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_ros2_inputs_both_storages(tmp_path, storage):
+    write_ros2(tmp_path / 'in', storage=storage)
+    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, plot_path=tmp_path / 'run.png',
+               progress=False)
+    assert s.scans == 20 and s.topic == '/scan'
+    out = read_output(tmp_path / 'out')
+    assert len(out['/tracks']) == len(out['/tracks/markers']) == 20
+    # bag time = scan stamp = header stamp
+    t, msg = out['/tracks'][-1]
+    assert t == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+    assert len(msg.objects) >= 3
+    assert (tmp_path / 'run.png').stat().st_size > 10_000
+
+
+def test_ros1_input(tmp_path):
+    write_ros1(tmp_path / 'in.bag')
+    s = replay(tmp_path / 'in.bag', tmp_path / 'out', CFG, progress=False)
+    assert s.scans == 20 and s.topic == '/base_scan'
+    assert len(read_output(tmp_path / 'out')['/tracks']) == 20
+
+
+def test_bundled_bag_replays():
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        s = replay(ROOT / 'bags' / 'demo', Path(d) / 'out', from_dict({}), progress=False)
+    assert s.scans == 150
+    assert 3 <= s.moving_ids <= 5                      # A, B, C (+ at most a wall patch)
+
+
+def test_several_scan_topics_need_a_choice(tmp_path):
+    write_ros2(tmp_path / 'in', topics=('/front_scan', '/rear_scan'), seconds=1.0)
+    with pytest.raises(BagError, match='several LaserScan topics.*/front_scan, /rear_scan'):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    assert not (tmp_path / 'out').exists()
+    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, scan_topic='rear_scan', progress=False)
+    assert s.topic == '/rear_scan' and s.scans == 10
+    with pytest.raises(BagError, match='choose one of'):
+        replay(tmp_path / 'in', tmp_path / 'out2', CFG, scan_topic='/nope', progress=False)
+
+
+def test_refuses_to_overwrite(tmp_path):
+    write_ros2(tmp_path / 'in', seconds=0.5)
+    (tmp_path / 'out').mkdir()
+    with pytest.raises(BagError, match='refusing to overwrite'):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+
+
+def test_corrupt_and_missing_inputs_give_clear_errors(tmp_path):
+    with pytest.raises(BagError, match='does not exist'):
+        replay(tmp_path / 'missing', tmp_path / 'out', CFG, progress=False)
+    bad = tmp_path / 'bad.bag'
+    bad.write_bytes(b'#ROSBAG V2.0\n' + b'\x00garbage' * 100)
+    with pytest.raises(BagError, match='cannot read bag'):
+        replay(bad, tmp_path / 'out', CFG, progress=False)
+    write_ros2(tmp_path / 'in', storage='mcap', seconds=1.0)
+    mcap = next((tmp_path / 'in').glob('*.mcap'))
+    mcap.write_bytes(mcap.read_bytes()[:2000])        # truncated file
+    with pytest.raises(BagError):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    assert not (tmp_path / 'out').exists()
+
+
+def test_no_laserscan_topic(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    store = message_typestore()
+    with Writer(tmp_path / 'in', version=9) as w:
+        c = w.add_connection('/chatter', 'std_msgs/msg/String', typestore=store)
+        w.write(c, 1, store.serialize_cdr(build_message(store, 'std_msgs/msg/String',
+                                                        {'data': 'x'}), 'std_msgs/msg/String'))
+    with pytest.raises(BagError, match='no sensor_msgs/LaserScan topic.*/chatter'):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+
+
+def test_interrupted_replay_leaves_no_bag(tmp_path, monkeypatch):
+    import extended_tracker.replay as rp
+
+    write_ros2(tmp_path / 'in', seconds=2.0)
+    real_step = rp.step
+    calls = {'n': 0}
+
+    def interrupted(state, scan, cfg):
+        calls['n'] += 1
+        if calls['n'] == 7:
+            raise KeyboardInterrupt
+        return real_step(state, scan, cfg)
+
+    monkeypatch.setattr(rp, 'step', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    assert not (tmp_path / 'out').exists()
+    assert not list(tmp_path.glob('.out.partial*'))
+
+
+def test_cli_replay_prints_a_summary(tmp_path):
+    write_ros2(tmp_path / 'in', seconds=1.0)
+    exe = Path(sys.executable).with_name('extended-tracker')
+    done = subprocess.run([str(exe), 'replay', str(tmp_path / 'in'), '--output',
+                           str(tmp_path / 'out'), '--quiet'], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert 'scans            10' in done.stdout and 'median' in done.stdout
+    again = subprocess.run([str(exe), 'replay', str(tmp_path / 'in'), '--output',
+                            str(tmp_path / 'out')], capture_output=True, text=True, timeout=120)
+    assert again.returncode == 2 and 'refusing to overwrite' in again.stderr
+    assert np.isfinite(1.0)
