@@ -57,14 +57,9 @@ class PartitionSet:
         ids = []
         new_cells = []
         for a, b in zip(starts, ends):
-            group = order[a:b]
-            # (first index, size) narrows the search; equality of indices decides
-            key = (int(group[0]), b - a)
-            found = None
-            for idx in self._index.get(key, ()):
-                if np.array_equal(self.cells[idx], group):
-                    found = idx
-                    break
+            group = order[a:b]                        # ascending: stable sort of labels
+            key = group.tobytes()                     # exact identity of the cell
+            found = self._index.get(key)
             if found is None:
                 new_cells.append((key, group))
                 found = -len(new_cells)               # placeholder until accepted
@@ -81,16 +76,21 @@ class PartitionSet:
         for j, (key, group) in enumerate(new_cells):
             idx = len(self.cells)
             self.cells.append(group)
-            self._index.setdefault(key, []).append(idx)
+            self._index[key] = idx
             ids[ids.index(-(j + 1))] = idx
         self._seen.add(tuple(sorted(ids)) + (0,))
         self.partitions.append(np.array(ids, dtype=np.int64))
         return True
 
 
+DENSE_MST_MAX = 160     # below this many detections Prim's algorithm on the dense matrix wins
+
+
 def _mst_edges(points: np.ndarray, d_max: float):
     """Edges (i, j, length) of the minimum spanning forest of the radius-``d_max`` graph."""
     n = len(points)
+    if n <= DENSE_MST_MAX:
+        return _mst_dense(points, d_max)
     tree = cKDTree(points)
     pairs = tree.query_pairs(d_max, output_type='ndarray')
     if not len(pairs):
@@ -101,6 +101,39 @@ def _mst_edges(points: np.ndarray, d_max: float):
     graph = coo_matrix((d, (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
     mst = minimum_spanning_tree(graph).tocoo()
     return mst.row, mst.col, mst.data
+
+
+def _mst_dense(points: np.ndarray, d_max: float):
+    """
+    Prim's algorithm on the full distance matrix; edges longer than ``d_max`` dropped.
+
+    The MST of the complete graph restricted to edges <= d_max is the minimum spanning
+    forest of the radius graph (cut property), so both paths give the same partitions.
+    """
+    n = len(points)
+    if n < 2:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+    diff = points[:, None, :] - points[None, :, :]
+    dist = np.sqrt(np.einsum('ijk,ijk->ij', diff, diff))
+    in_tree = np.zeros(n, dtype=bool)
+    in_tree[0] = True
+    best = dist[0].copy()
+    parent = np.zeros(n, dtype=np.int64)
+    best[0] = np.inf
+    rows, cols, lens = [], [], []
+    for _ in range(n - 1):
+        j = int(np.argmin(best))
+        rows.append(int(parent[j]))
+        cols.append(j)
+        lens.append(float(best[j]))
+        in_tree[j] = True
+        best[j] = np.inf
+        closer = (dist[j] < best) & ~in_tree
+        best[closer] = dist[j, closer]
+        parent[closer] = j
+    rows, cols, lens = np.array(rows), np.array(cols), np.array(lens)
+    keep = lens <= d_max
+    return rows[keep], cols[keep], np.maximum(lens[keep], 1e-12)
 
 
 def _roots(parent: np.ndarray) -> np.ndarray:

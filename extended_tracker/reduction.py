@@ -47,9 +47,13 @@ def merge_gamma(w, alpha, beta):
     return float(a), float(a / mean)
 
 
+_HALF_J = 0.5 * np.arange(D)                  # (j - 1) / 2 for j = 1..d
+
+
 def _iw_psi_sum(nu):
-    """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` (vectorised)."""
-    return sum(digamma((nu - j + 1) / 2) for j in range(1, D + 1))
+    """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` for scalar or (k,) ``nu``."""
+    nu = np.asarray(nu, dtype=float)
+    return digamma(0.5 * nu[..., None] - _HALF_J).sum(axis=-1)
 
 
 def merge_iw(w, v, V):
@@ -61,56 +65,92 @@ def merge_iw(w, v, V):
     With ``nu = v - d - 1``: ``E[X^-1] = nu V^-1`` and
     ``E[log|X|] = log|V| - d log 2 - sum_j digamma((nu - j + 1)/2)``. Matching both gives
     ``V = nu Psi^-1`` with ``Psi = sum w_i nu_i V_i^-1`` and
-    ``d log nu - sum_j digamma((nu-j+1)/2) = c + log|Psi| + d log 2``; the left side decreases
-    in ``nu``, so bisection finds it.
+    ``f(nu) = d log nu - sum_j digamma((nu-j+1)/2) - (c + log|Psi| + d log 2) = 0``; ``f``
+    decreases in ``nu``. Newton starts at the weighted mean of the ``nu_i`` (a few steps
+    from the root) and is kept inside ``nu > d + 1`` so that ``v > 2d + 2``.
 
     """
     wn = w / w.sum()
     nu_i = v - D - 1
     Psi = np.sum(wn[:, None, None] * nu_i[:, None, None] * inv2(V), axis=0)
-    elog = np.sum(wn * (logdet_spd2(V) - D * np.log(2) - _iw_psi_sum(nu_i)))
-    target = elog + logdet_spd2(Psi) + D * np.log(2)
-
-    def lhs(nu):
-        return D * np.log(nu) - _iw_psi_sum(nu)
-
-    # Newton on lhs(nu) = target; lhs is decreasing and convex in nu, so Newton from the
-    # left of the root is monotone. Start at the smallest allowed nu's neighbourhood and
-    # keep iterates inside (nu_min, inf).
-    nu_min = IW_OFFSET - D - 1 + 1e-9                 # nu > d + 1 keeps v > 2d + 2
-    if lhs(nu_min) <= target:
-        nu = nu_min
-    else:
-        nu = float(np.min(nu_i))
-        if lhs(nu) < target:
-            nu = nu_min + 1e-6
-        for _ in range(50):
-            f = lhs(nu) - target
-            fp = D / nu - 0.5 * sum(polygamma(1, (nu - j + 1) / 2) for j in range(1, D + 1))
-            step = f / fp
-            nu_new = nu - step
-            if nu_new <= nu_min:
-                nu_new = 0.5 * (nu + nu_min)
-            if abs(nu_new - nu) <= 1e-12 * nu:
-                nu = nu_new
-                break
+    elog = float(np.sum(wn * (logdet_spd2(V) - _iw_psi_sum(nu_i))))
+    target = elog + float(logdet_spd2(Psi))            # the d log 2 terms cancel
+    nu_min = IW_OFFSET - D - 1 + 1e-9
+    nu = float(np.sum(wn * nu_i))
+    for _ in range(60):
+        x = np.array([0.5 * nu, 0.5 * nu - 0.5])
+        f = D * np.log(nu) - float(digamma(x).sum()) - target
+        fp = D / nu - 0.5 * float(polygamma(1, x).sum())
+        nu_new = nu - f / fp
+        if nu_new <= nu_min:
+            nu_new = 0.5 * (nu + nu_min)
+        if abs(nu_new - nu) <= 1e-10 * nu:
             nu = nu_new
+            break
+        nu = nu_new
+    nu = max(nu, nu_min)
     V_new = nu * inv2(Psi)
     return float(nu + D + 1), symmetrize(V_new)
 
 
-def merge_components(mix: Mixture, idx: np.ndarray):
-    """Merge components ``idx`` into one; weight is the sum, label that of the heaviest."""
+def merge_groups(mix: Mixture, groups: list) -> Mixture:
+    """
+    Merge each group of components (index arrays) into one, all groups in one batch.
+
+    Weights add; the Gaussian is moment matched; the Gamma matches ``E[gamma]`` and
+    ``E[log gamma]``; the inverse Wishart matches ``E[X^-1]`` and ``E[log|X|]`` (see
+    :func:`merge_gamma` and :func:`merge_iw`, the per-group statements of the same
+    equations); the label is the heaviest member's. Newton runs vectorised over groups.
+    """
+    g = len(groups)
+    sizes = np.array([len(x) for x in groups])
+    idx = np.concatenate(groups)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    gid = np.repeat(np.arange(g), sizes)
     w = mix.w[idx]
-    W = w.sum()
-    wn = w / W
-    m = np.sum(wn[:, None] * mix.m[idx], axis=0)
-    dm = mix.m[idx] - m
-    P = np.sum(wn[:, None, None] * (mix.P[idx] + dm[:, :, None] * dm[:, None, :]), axis=0)
-    a, b = merge_gamma(w, mix.alpha[idx], mix.beta[idx])
-    v, V = merge_iw(w, mix.v[idx], mix.V[idx])
-    label = mix.label[idx][np.argmax(w)]
-    return W, a, b, m, symmetrize(P), v, V, label
+    W = np.add.reduceat(w, starts)
+    wn = w / W[gid]
+    m = np.add.reduceat(wn[:, None] * mix.m[idx], starts)
+    dm = mix.m[idx] - m[gid]
+    P = np.add.reduceat(wn[:, None, None] * (mix.P[idx] + dm[:, :, None] * dm[:, None, :]),
+                        starts)
+    # Gamma: log a - digamma(a) = log E[g] - E[log g] =: c
+    al, be = mix.alpha[idx], mix.beta[idx]
+    mean = np.add.reduceat(wn * al / be, starts)
+    elog = np.add.reduceat(wn * (digamma(al) - np.log(be)), starts)
+    c = np.maximum(np.log(mean) - elog, 1e-12)
+    a = (3 - c + np.sqrt((c - 3) ** 2 + 24 * c)) / (12 * c)      # Minka's start
+    for _ in range(8):
+        step = (np.log(a) - digamma(a) - c) / (1 / a - polygamma(1, a))
+        a = np.where(a - step > 0, a - step, a / 2)
+    b = a / mean
+    # inverse Wishart
+    nu_i = mix.v[idx] - D - 1
+    Psi = np.add.reduceat((wn * nu_i)[:, None, None] * inv2(mix.V[idx]), starts)
+    elog_x = np.add.reduceat(wn * (logdet_spd2(mix.V[idx]) - _iw_psi_sum(nu_i)), starts)
+    target = elog_x + logdet_spd2(Psi)
+    nu_min = IW_OFFSET - D - 1 + 1e-9
+    nu = np.add.reduceat(wn * nu_i, starts)
+    for _ in range(12):
+        x = 0.5 * nu[:, None] - _HALF_J
+        f = D * np.log(nu) - digamma(x).sum(axis=1) - target
+        fp = D / nu - 0.5 * polygamma(1, x).sum(axis=1)
+        nxt = nu - f / fp
+        nu = np.where(nxt > nu_min, nxt, 0.5 * (nu + nu_min))
+    nu = np.maximum(nu, nu_min)
+    V = nu[:, None, None] * inv2(Psi)
+    # label of the heaviest member
+    order = np.lexsort((-w, gid))
+    first = order[starts]
+    label = mix.label[idx][first]
+    return Mixture(W, a, b, m, symmetrize(P), nu + D + 1, symmetrize(V), label)
+
+
+def merge_components(mix: Mixture, idx: np.ndarray):
+    """Merge components ``idx`` into one: ``(w, alpha, beta, m, P, v, V, label)``."""
+    out = merge_groups(mix, [np.asarray(idx)])
+    return (out.w[0], out.alpha[0], out.beta[0], out.m[0], out.P[0], out.v[0], out.V[0],
+            out.label[0])
 
 
 def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
@@ -150,14 +190,13 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
             group = remaining[d2 <= merge_distance]
             out.append(group)
             remaining = remaining[d2 > merge_distance]
+    singles = [grp for grp in out if len(grp) == 1]
+    multi = [grp for grp in out if len(grp) > 1]
     parts = []
-    for group in out:
-        if len(group) == 1:
-            parts.append(mix.take(group))
-        else:
-            W, a, b, m, P, v, V, lab = merge_components(mix, group)
-            parts.append(Mixture(np.array([W]), np.array([a]), np.array([b]), m[None], P[None],
-                                 np.array([v]), V[None], np.array([lab], dtype=np.int64)))
+    if singles:
+        parts.append(mix.take(np.concatenate(singles)))
+    if multi:
+        parts.append(merge_groups(mix, multi))
     merged = Mixture.concat(parts)
     capped = 0
     if len(merged) > max_components:

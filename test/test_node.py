@@ -256,3 +256,41 @@ def test_node_and_replay_publish_the_same(tmp_path):
     for a, b in zip(live_tracks, from_bag['/tracks']):
         assert strip(a) == strip(b)
     assert live_markers == from_bag['/tracks/markers']
+
+
+def _node_exe():
+    import sys
+
+    return str(Path(sys.prefix) / 'lib' / 'extended_tracker' / 'tracker_node')
+
+
+@pytest.mark.parametrize('sig', ['SIGTERM', 'SIGINT'])
+def test_process_shuts_down_cleanly(sig):
+    import os
+    import signal
+    import subprocess
+
+    proc = subprocess.Popen([_node_exe(), '--ros-args', '-r', 'scan:=/front/scan'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=dict(os.environ))
+    try:
+        deadline = time.monotonic() + 20
+        line = ''
+        while 'tracking' not in line and time.monotonic() < deadline:
+            line = proc.stdout.readline()
+        assert '/front/scan' in line, line
+        proc.send_signal(getattr(signal, sig))
+        assert proc.wait(timeout=20) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_process_refuses_an_invalid_parameter_with_the_reason():
+    import os
+    import subprocess
+
+    done = subprocess.run([_node_exe(), '--ros-args', '-p', 'model.mode:=kalman'],
+                          capture_output=True, text=True, timeout=30, env=dict(os.environ))
+    assert done.returncode == 2
+    assert "model.mode must be one of ('cphd', 'phd'), got 'kalman'" in done.stderr

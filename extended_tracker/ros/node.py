@@ -171,6 +171,11 @@ def main(args=None) -> None:
     except ConfigError as err:
         rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid configuration: {err}')
         raise SystemExit(2) from err
+    except Exception:
+        # SIGINT/SIGTERM during start-up shut the context down before spin could create
+        # its executor; that is the requested shutdown, not a failure
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()

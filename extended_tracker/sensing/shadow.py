@@ -23,6 +23,8 @@ import numpy as np
 from ..ggiw import Mixture
 from .scan import ScanPoints
 
+GATHER_WIDTH = 64        # intervals up to this many beams are counted in one gather
+
 
 @dataclass(frozen=True)
 class Visibility:
@@ -73,17 +75,29 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     lo = np.where(empty, nearest, lo)
     hi = np.where(empty, nearest + 1, hi)
     width = hi - lo
-    w_max = int(width.max())
-    idx = lo[:, None] + np.arange(w_max)[None, :]
-    inside = idx < hi[:, None]
-    idx = np.minimum(idx, len(ang) - 1)
-    blocked = (rng[idx] < (r_near - margin)[:, None]) & inside
-    frac_visible = 1.0 - blocked.sum(axis=1) / width
-    # mean angle of the unblocked beams: where the visible part's centroid lies
-    free = inside & ~blocked
-    n_free = free.sum(axis=1)
-    mean_free = np.where(n_free > 0, (np.where(free, ang[idx], 0.0)).sum(axis=1)
-                         / np.maximum(n_free, 1), bearing)
+    thr = r_near - margin
+    blocked_n = np.zeros(k)
+    free_sum = np.zeros(k)
+    # narrow intervals in one gather; the few wide ones (objects close to the scanner)
+    # one slice each, so the work is the total width, not components x widest
+    narrow = width <= GATHER_WIDTH
+    if np.any(narrow):
+        ni = np.flatnonzero(narrow)
+        w_max = int(width[ni].max())
+        idx = lo[ni, None] + np.arange(w_max)[None, :]
+        inside = idx < hi[ni, None]
+        idx = np.minimum(idx, len(ang) - 1)
+        blocked = (rng[idx] < thr[ni, None]) & inside
+        blocked_n[ni] = blocked.sum(axis=1)
+        free_sum[ni] = np.where(inside & ~blocked, ang[idx], 0.0).sum(axis=1)
+    for i in np.flatnonzero(~narrow):
+        seg = rng[lo[i]:hi[i]]
+        b = seg < thr[i]
+        blocked_n[i] = b.sum()
+        free_sum[i] = ang[lo[i]:hi[i]][~b].sum()
+    frac_visible = 1.0 - blocked_n / width
+    n_free = width - blocked_n
+    mean_free = np.where(n_free > 0, free_sum / np.maximum(n_free, 1), bearing)
     # part of the interval outside the field of view is not seen at all
     step = max(float(np.median(np.diff(ang))) if len(ang) > 1 else 0.0, 1e-9)
     span = 2 * half_angle
@@ -94,7 +108,8 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     return np.where(centre_in, frac_visible * in_fov, 0.0), mean_free
 
 
-def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
+def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
+                    with_offset: bool = True) -> Visibility:
     """
     p_D of every predicted component for one scan, by ``cfg.detection.model``.
 
@@ -113,19 +128,22 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
         ones = np.ones(n)
         return Visibility(np.full(n, det.p_d0), ones, None)
     bearing, half, r_near, r_far = _geometry(mix, det.widen_sigmas, 0.0)
-    if det.model == 'scan_shadow':
-        visible, mean_free = _visible_fraction(bearing, half, r_near, scan, scan.ranges,
-                                               det.shadow_margin)
-    else:
-        visible, mean_free = _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det)
-    # The visible part's centroid sits at the mean unshadowed angle, on the object's
-    # near range: an offset across the line of sight from the centre.
-    r_c = np.hypot(mix.m[:, 0], mix.m[:, 1])
-    across = np.column_stack([-np.sin(bearing), np.cos(bearing)])
-    shift = np.where((visible > 0) & (visible < 1), _wrap(mean_free - bearing) * r_c, 0.0)
-    offset = across * shift[:, None]
+    offset = None
+    if with_offset:
+        if det.model == 'scan_shadow':
+            visible, mean_free = _visible_fraction(bearing, half, r_near, scan, scan.ranges,
+                                                   det.shadow_margin)
+        else:
+            visible, mean_free = _estimate_shadow(mix, bearing, half, r_near, r_far, scan,
+                                                  det)
+        # The visible part's centroid sits at the mean unshadowed angle, on the object's
+        # near range: an offset across the line of sight from the centre.
+        r_c = np.hypot(mix.m[:, 0], mix.m[:, 1])
+        across = np.column_stack([-np.sin(bearing), np.cos(bearing)])
+        shift = np.where((visible > 0) & (visible < 1), _wrap(mean_free - bearing) * r_c, 0.0)
+        offset = across * shift[:, None]
     # p_D from the interval widened by the position uncertainty (capped)
-    if det.max_widen > 0 and det.widen_sigmas > 0:
+    if not with_offset or (det.max_widen > 0 and det.widen_sigmas > 0):
         bw, hw, rnw, rfw = _geometry(mix, det.widen_sigmas, det.max_widen)
         if det.model == 'scan_shadow':
             visible, _ = _visible_fraction(bw, hw, rnw, scan, scan.ranges, det.shadow_margin)
@@ -190,4 +208,4 @@ def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.nda
         return default[comp]
     probe = Mixture(mix.w[comp], mix.alpha[comp], mix.beta[comp], m_updated, P_updated,
                     mix.v[comp], mix.V[comp], mix.label[comp])
-    return detection_model(probe, scan, cfg).p_d
+    return detection_model(probe, scan, cfg, with_offset=False).p_d

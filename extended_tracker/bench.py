@@ -1,0 +1,157 @@
+"""
+Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
+
+- filter: one full filter step (partition, predict, update, reduce, extract) on the
+  returns of simulated scans of N pedestrians, against N and the detections;
+- pipeline: ``pipeline.step`` on the scenario scans S1 (tutorial-like, 361 beams, four
+  pedestrians), S2 (1081 beams / 270 deg, a car, two bicycles, seven pedestrians, 3
+  clutter returns) and S3 (1081 beams, 40 objects, 20 clutter returns), with the caps
+  that bit;
+- memory: resident memory over many scans (``--memory N``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import resource
+import time
+
+import numpy as np
+
+from .config import from_dict
+from .pipeline import PipelineState, step
+from .sensing.scan import scan_to_points
+from .sim.laser import LaserSpec, mixed_traffic_scene, Scene, SimObject, simulate, tutorial_scene
+from .tracker import FilterState, filter_step
+
+
+def crowd_scene(n: int, seed: int, beams: int = 361, fov_deg: float = 180.0,
+                range_max: float = 13.0, clutter: float = 0.0) -> Scene:
+    """``n`` pedestrians walking in random directions in front of the scanner."""
+    rng = np.random.default_rng(seed)
+    objs = []
+    for _ in range(n):
+        r = rng.uniform(1.5, range_max * 0.8)
+        a = rng.uniform(-math.radians(fov_deg) / 2 * 0.9, math.radians(fov_deg) / 2 * 0.9)
+        h = rng.uniform(-math.pi, math.pi)
+        speed = rng.uniform(0.3, 1.4)
+        objs.append(SimObject((r * math.cos(a), r * math.sin(a)),
+                              (speed * math.cos(h), speed * math.sin(h))))
+    half = math.radians(fov_deg) / 2
+    return Scene(tuple(objs), laser=LaserSpec(angle_min=-half, angle_max=half, n_beams=beams,
+                                              range_max=range_max, clutter_per_scan=clutter))
+
+
+def stress_scene() -> Scene:
+    """S3: 40 pedestrians, 1081 beams over 270 deg, 30 m, 20 clutter returns per scan."""
+    return crowd_scene(40, seed=11, beams=1081, fov_deg=270.0, range_max=30.0, clutter=20.0)
+
+
+def _stats(seconds):
+    ms = np.asarray(seconds) * 1e3
+    return float(np.median(ms)), float(np.percentile(ms, 99)), float(np.max(ms))
+
+
+def bench_filter(counts, scans, warm=10):
+    """Median and p99 of one filter step on the returns of N pedestrians."""
+    cfg = from_dict({'background': {'enabled': False}})
+    print('filter step (partition, predict, update, reduce, extract), 361 beams, p_D const')
+    print(f'{"objects":>8s} {"detections":>10s} {"cells":>6s} {"partitions":>10s} '
+          f'{"median ms":>9s} {"p99 ms":>7s}')
+    rows = []
+    for n in counts:
+        data = simulate(crowd_scene(n, seed=n), (scans + warm) / 10.0, seed=n)
+        pts = [scan_to_points(s).points for s, _ in data]
+        state = FilterState.initial(cfg)
+        times, dets, cells, parts = [], [], [], []
+        for k, p in enumerate(pts):
+            t0 = time.perf_counter()
+            state, est, diag = filter_step(state, p, 0.1, cfg, clutter_area=0.5 * math.pi * 169)
+            dt = time.perf_counter() - t0
+            if k >= warm:
+                times.append(dt)
+                dets.append(len(p))
+                cells.append(diag.cells)
+                parts.append(diag.partitions)
+        med, p99, _ = _stats(times)
+        rows.append((n, np.mean(dets), np.mean(cells), med))
+        print(f'{n:8d} {np.mean(dets):10.0f} {np.mean(cells):6.0f} {np.mean(parts):10.1f} '
+              f'{med:9.2f} {p99:7.2f}')
+    return rows
+
+
+def bench_pipeline(scans):
+    print('\nper-scan pipeline.step (convert, background, p_D, filter, extract)')
+    print(f'{"scenario":40s} {"beams":>5s} {"det":>5s} {"median ms":>9s} {"p99 ms":>7s} '
+          f'{"max ms":>7s} {"caps hit (partitions/cells/components)":>40s}')
+    cases = [
+        ('S1 tutorial-like, 4 pedestrians', tutorial_scene(), {'background': {'enabled': False}}),
+        ('S2 car, 2 bicycles, 7 pedestrians', mixed_traffic_scene(), {}),
+        ('S3 stress, 40 objects, 20 clutter', stress_scene(), {}),
+    ]
+    for name, scene, cfgd in cases:
+        cfg = from_dict(cfgd)
+        data = simulate(scene, scans / 10.0 + 2.0, seed=1)
+        state = PipelineState.initial(cfg)
+        times, dets, caps = [], [], np.zeros(3, int)
+        for k, (scan, _) in enumerate(data):
+            state, res = step(state, scan, cfg)
+            if k >= 20:
+                times.append(res.processing_time)
+                dets.append(res.diagnostics['detections'] - res.diagnostics['background_dropped'])
+                d = res.diagnostics
+                caps += [d['capped_partitions'] > 0, d['capped_cells'] > 0,
+                         d['capped_components'] > 0]
+        med, p99, mx = _stats(times)
+        print(f'{name:40s} {scene.laser.n_beams:5d} {np.mean(dets):5.0f} {med:9.2f} '
+              f'{p99:7.2f} {mx:7.2f} {"/".join(str(c) for c in caps):>40s}')
+
+
+def bench_memory(n_scans):
+    """Resident memory growth over ``n_scans`` scans of S1, looping the same 60 s."""
+    cfg = from_dict({'background': {'enabled': False}})
+    data = [s for s, _ in simulate(tutorial_scene(), 60.0, seed=4)]
+    state = PipelineState.initial(cfg)
+    step_ns = 100_000_000
+    base_ns = data[0].header.stamp.sec * 10**9 + data[0].header.stamp.nanosec
+    rss = []
+    import copy
+
+    for k in range(n_scans):
+        scan = copy.copy(data[k % len(data)])
+        ns = base_ns + k * step_ns
+        scan.header = copy.copy(scan.header)
+        scan.header.stamp = type(scan.header.stamp)(ns // 10**9, ns % 10**9)
+        state, _ = step(state, scan, cfg)
+        if k % 1000 == 0 or k == n_scans - 1:
+            rss.append((k, _rss_mb()))
+    print(f'\nresident memory over {n_scans} scans: ' + ', '.join(f'{k}: {m:.1f} MB'
+                                                              for k, m in rss))
+    print(f'growth after the first 1000 scans: {rss[-1][1] - rss[1][1]:.2f} MB')
+
+
+def _rss_mb():
+    try:
+        with open('/proc/self/statm') as fh:
+            pages = int(fh.read().split()[1])
+        return pages * resource.getpagesize() / 2**20
+    except OSError:
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog='extended-tracker bench')
+    p.add_argument('--quick', action='store_true', help='fewer scans per case')
+    p.add_argument('--memory', type=int, default=0, help='also run N scans for memory')
+    args = p.parse_args(argv)
+    scans = 60 if args.quick else 300
+    bench_filter([1, 2, 4, 10, 20, 50], scans)
+    bench_pipeline(scans)
+    if args.memory:
+        bench_memory(args.memory)
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
