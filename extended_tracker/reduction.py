@@ -120,9 +120,11 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     elog = np.add.reduceat(wn * (digamma(al) - np.log(be)), starts)
     c = np.maximum(np.log(mean) - elog, 1e-12)
     a = (3 - c + np.sqrt((c - 3) ** 2 + 24 * c)) / (12 * c)      # Minka's start
-    for _ in range(8):
+    for _ in range(20):
         step = (np.log(a) - digamma(a) - c) / (1 / a - polygamma(1, a))
         a = np.where(a - step > 0, a - step, a / 2)
+        if np.all(np.abs(step) <= 1e-10 * a):
+            break
     b = a / mean
     # inverse Wishart
     nu_i = mix.v[idx] - D - 1
@@ -131,12 +133,15 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     target = elog_x + logdet_spd2(Psi)
     nu_min = IW_OFFSET - D - 1 + 1e-9
     nu = np.add.reduceat(wn * nu_i, starts)
-    for _ in range(12):
+    for _ in range(30):
         x = 0.5 * nu[:, None] - _HALF_J
         f = D * np.log(nu) - digamma(x).sum(axis=1) - target
         fp = D / nu - 0.5 * polygamma(1, x).sum(axis=1)
         nxt = nu - f / fp
+        done = np.all(np.abs(nxt - nu) <= 1e-10 * nu)
         nu = np.where(nxt > nu_min, nxt, 0.5 * (nu + nu_min))
+        if done:
+            break
     nu = np.maximum(nu, nu_min)
     V = nu[:, None, None] * inv2(Psi)
     # label of the heaviest member
@@ -175,21 +180,33 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     mix = mix.take(keep)
     if not len(mix):
         return mix, 0
+    # Common case in one pass: every component of a label lies within the merge distance
+    # of the label's heaviest component; only the other labels go through the greedy loop.
+    order = np.lexsort((-mix.w, mix.label))
+    lab_sorted = mix.label[order]
+    first = np.concatenate([[True], lab_sorted[1:] != lab_sorted[:-1]])
+    head = order[first][np.cumsum(first) - 1]          # heaviest of each component's label
+    e = mix.m[order, :2] - mix.m[head, :2]
+    Pi = inv2(mix.P[head, :2, :2])
+    d2 = np.einsum('ki,kij,kj->k', e, Pi, e)
+    far_labels = np.unique(lab_sorted[d2 > merge_distance])
     out = []
-    for lab in np.unique(mix.label):
-        idx = np.flatnonzero(mix.label == lab)
-        if len(idx) == 1:
-            out.append(idx)
+    starts = np.flatnonzero(first)
+    bounds = np.append(starts, len(order))
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if lab_sorted[a] in far_labels:
             continue
+        out.append(order[a:b])
+    for lab in far_labels:
+        idx = np.flatnonzero(mix.label == lab)
         remaining = idx[np.argsort(-mix.w[idx], kind='stable')]
         while len(remaining):
             j = remaining[0]
             e = mix.m[remaining, :2] - mix.m[j, :2]
-            Pi = inv2(mix.P[j, :2, :2])
-            d2 = np.einsum('ki,ij,kj->k', e, Pi, e)
-            group = remaining[d2 <= merge_distance]
-            out.append(group)
-            remaining = remaining[d2 > merge_distance]
+            d2 = np.einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
+            near = d2 <= merge_distance
+            out.append(remaining[near])
+            remaining = remaining[~near]
     singles = [grp for grp in out if len(grp) == 1]
     multi = [grp for grp in out if len(grp) > 1]
     parts = []
