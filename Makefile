@@ -6,7 +6,7 @@ PY := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 unexport ROS_LOCALHOST_ONLY
 
-.PHONY: setup test demo real bench config clean
+.PHONY: setup test demo real bench results config clean
 
 setup:
 	@EXTENDED_TRACKER_VENV=$(VENV) bash tools/bootstrap.sh
@@ -30,7 +30,10 @@ real: setup
 	$(TRACKER) real --data $(REAL) --out out/real
 
 bench: setup
-	$(TRACKER) bench
+	$(TRACKER) bench --memory 20000
+
+results: setup
+	$(TRACKER) results --readme README.md
 
 config: setup
 	$(PY) -m extended_tracker.configio > config/tracker.yaml

@@ -22,25 +22,8 @@ import numpy as np
 from .config import from_dict
 from .pipeline import PipelineState, step
 from .sensing.scan import scan_to_points
-from .sim.laser import LaserSpec, mixed_traffic_scene, Scene, SimObject, simulate, tutorial_scene
+from .sim.laser import crowd_scene, mixed_traffic_scene, simulate, tutorial_scene
 from .tracker import FilterState, filter_step
-
-
-def crowd_scene(n: int, seed: int, beams: int = 361, fov_deg: float = 180.0,
-                range_max: float = 13.0, clutter: float = 0.0) -> Scene:
-    """``n`` pedestrians walking in random directions in front of the scanner."""
-    rng = np.random.default_rng(seed)
-    objs = []
-    for _ in range(n):
-        r = rng.uniform(1.5, range_max * 0.8)
-        a = rng.uniform(-math.radians(fov_deg) / 2 * 0.9, math.radians(fov_deg) / 2 * 0.9)
-        h = rng.uniform(-math.pi, math.pi)
-        speed = rng.uniform(0.3, 1.4)
-        objs.append(SimObject((r * math.cos(a), r * math.sin(a)),
-                              (speed * math.cos(h), speed * math.sin(h))))
-    half = math.radians(fov_deg) / 2
-    return Scene(tuple(objs), laser=LaserSpec(angle_min=-half, angle_max=half, n_beams=beams,
-                                              range_max=range_max, clutter_per_scan=clutter))
 
 
 def stress_scene() -> Scene:
@@ -87,8 +70,10 @@ def bench_pipeline(scans):
           f'{"max ms":>7s} {"caps hit (partitions/cells/components)":>40s}')
     cases = [
         ('S1 tutorial-like, 4 pedestrians', tutorial_scene(), {'background': {'enabled': False}}),
-        ('S2 car, 2 bicycles, 7 pedestrians', mixed_traffic_scene(), {}),
-        ('S3 stress, 40 objects, 20 clutter', stress_scene(), {}),
+        ('S2 car, 2 bicycles, 7 pedestrians', mixed_traffic_scene(),
+         {'model': {'clutter_rate': 3.0}}),
+        ('S3 stress, 40 objects, 20 clutter', stress_scene(),
+         {'model': {'clutter_rate': 20.0, 'n_max': 60}}),
     ]
     for name, scene, cfgd in cases:
         cfg = from_dict(cfgd)

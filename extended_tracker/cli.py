@@ -4,7 +4,9 @@
     extended-tracker replay INPUT --output OUTPUT [--scan-topic T] [--config YAML] [--plot PNG]
     extended-tracker simulate OUTPUT [--scene NAME] [--seed N] [--duration S]
     extended-tracker real [--data DIR] [--out DIR]
-    extended-tracker bench [--quick]
+    extended-tracker evaluate OUTPUT_BAG --truth TRUTH [--plot PNG]
+    extended-tracker results [--readme README.md]
+    extended-tracker bench [--quick] [--memory N]
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+
+import numpy as np
 from pathlib import Path
 import sys
 
@@ -87,10 +91,47 @@ def cmd_real(args) -> int:
     return 0
 
 
+def cmd_evaluate(args) -> int:
+    from .evaluate import evaluate_bag, GOSPA_C, GOSPA_P
+
+    score, per, stamps = evaluate_bag(args.output_bag, args.truth, args.plot)
+    print(f'GOSPA (alpha 2, c {GOSPA_C:g} m, p {GOSPA_P:g}, Gaussian-Wasserstein), '
+          f'{score.scans} scans')
+    print(f'mean GOSPA        {score.gospa_mean:.3f} m')
+    print(f'  localisation    {score.localisation_mean:.3f}   missed {score.missed_mean:.3f}'
+          f'   false {score.false_mean:.3f}  (mean per scan, before the 1/p power)')
+    print(f'cardinality error {score.cardinality_error:.3f} per scan')
+    print(f'id switches       {score.id_switches}')
+    print(f'fragmentations    {score.fragmentations}')
+    t = (stamps - stamps[0]) * 1e-9
+    print('over time (per second): ' + '  '.join(
+        f'{int(s)}s {np.mean([g.total for g, tt in zip(per, t) if int(tt) == s]):.2f}'
+        for s in range(int(t[-1]) + 1)))
+    if args.plot:
+        print(f'plot              {args.plot}')
+    return 0
+
+
+def cmd_results(args) -> int:
+    from .evaluate import results_table, scenario_notes, write_readme_results
+
+    if args.readme:
+        write_readme_results(Path(args.readme))
+        print(f'results written into {args.readme}')
+    else:
+        print(scenario_notes())
+        print()
+        print(results_table())
+    return 0
+
+
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
 
-    return bench_main(['--quick'] if args.quick else [])
+    argv = ['--quick'] if args.quick else []
+    if args.memory:
+        argv += ['--memory', str(args.memory)]
+    return bench_main(argv)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -115,8 +156,17 @@ def build_parser() -> argparse.ArgumentParser:
     real.add_argument('--out', default=os.path.join('out', 'real'))
     real.add_argument('--config')
     real.set_defaults(func=cmd_real)
+    e = sub.add_parser('evaluate', help='score a replayed bag against simulator truth')
+    e.add_argument('output_bag')
+    e.add_argument('--truth', required=True, help='truth.json written by simulate')
+    e.add_argument('--plot', help='PNG of GOSPA and cardinality against time')
+    e.set_defaults(func=cmd_evaluate)
+    res = sub.add_parser('results', help='run the scenario suite (CPHD/PHD x p_D models)')
+    res.add_argument('--readme', help='write the table into this README between markers')
+    res.set_defaults(func=cmd_results)
     b = sub.add_parser('bench', help='print per-scan timing figures')
     b.add_argument('--quick', action='store_true')
+    b.add_argument('--memory', type=int, default=0, help='also N scans for resident memory')
     b.set_defaults(func=cmd_bench)
     return p
 

@@ -26,7 +26,8 @@ ROS_MODULES = {
 CORE_ALLOWED = {'numpy', 'scipy'}
 # Edge modules outside ros/: bag I/O, command line, plots. They may add rosbags, yaml and
 # matplotlib, never rclpy or message packages.
-EDGE_MODULES = {'configio.py', 'bagio.py', 'bag.py', 'messages.py', 'bench.py', 'cli.py', 'replay.py', 'plotting.py', 'evaluate.py', 'bench.py'}
+EDGE_MODULES = {'configio.py', 'bagio.py', 'bag.py', 'messages.py', 'bench.py', 'cli.py',
+                'replay.py', 'plotting.py', 'evaluate.py'}
 
 
 def _imports(path):

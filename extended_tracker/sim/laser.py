@@ -289,3 +289,37 @@ def demo_scene() -> Scene:
         SimObject((8.0, -4.0), (0.0, 0.55), t_start=3.0, kind='B'),
         SimObject((1.0, 4.0), (0.9, -0.55), t_start=1.0, kind='C'),
     ), walls=room, laser=LaserSpec())
+
+
+def crossing_scene() -> Scene:
+    """Three pedestrians whose paths cross in front of the scanner (passing 0.6 m apart)."""
+    return Scene(objects=(
+        SimObject((3.0, -4.0), (0.5, 0.9)),
+        SimObject((7.6, -4.0), (-0.5, 0.9)),
+        SimObject((2.5, 3.5), (0.8, -0.6), t_start=1.0),
+    ), laser=LaserSpec())
+
+
+def crowd_scene(n: int = 20, seed: int = 5, beams: int = 361, fov_deg: float = 180.0,
+                range_max: float = 13.0, clutter: float = 0.0) -> Scene:
+    """``n`` pedestrians walking in random directions in front of the scanner."""
+    rng = np.random.default_rng(seed)
+    objs = []
+    for _ in range(n):
+        r = rng.uniform(1.5, range_max * 0.8)
+        a = rng.uniform(-math.radians(fov_deg) / 2 * 0.9, math.radians(fov_deg) / 2 * 0.9)
+        h = rng.uniform(-math.pi, math.pi)
+        speed = rng.uniform(0.3, 1.4)
+        objs.append(SimObject((r * math.cos(a), r * math.sin(a)),
+                              (speed * math.cos(h), speed * math.sin(h))))
+    half = math.radians(fov_deg) / 2
+    return Scene(tuple(objs), laser=LaserSpec(angle_min=-half, angle_max=half, n_beams=beams,
+                                              range_max=range_max, clutter_per_scan=clutter))
+
+
+def clutter_scene() -> Scene:
+    """The tutorial's people with 15 clutter returns per scan."""
+    base = tutorial_scene()
+    from dataclasses import replace as _replace
+
+    return _replace(base, laser=_replace(base.laser, clutter_per_scan=15.0))
