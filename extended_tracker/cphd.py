@@ -308,6 +308,21 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
 
     """
     n_max = len(log_card) - 1
+    surv = _log_thinning(n_max, float(p_survival)) + log_card[None, :]
+    log_surv = lse_rows(surv)
+    log_birth = poisson_log_pmf(birth_mean, n_max)
+    # convolution: out[n] = logsumexp_j surv[j] + birth[n - j]
+    conv = np.where(_LOWER[n_max], log_surv[None, :] + log_birth[_DIFF[n_max]], NEG_INF)
+    out = lse_rows(conv)
+    return out - lse1(out)
+
+
+def _log_thinning(n_max: int, p_s: float) -> np.ndarray:
+    """``log C(l, j) p_S^j (1 - p_S)^(l - j)`` as a (j, l) matrix, cached per (N_max, p_S)."""
+    key = (n_max, p_s)
+    hit = _THIN_CACHE.get(key)
+    if hit is not None:
+        return hit
     lf = gammaln(np.arange(n_max + 1) + 1)
     j = np.arange(n_max + 1)[:, None]
     l_ = np.arange(n_max + 1)[None, :]
@@ -315,15 +330,31 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     lj = np.where(valid, l_ - j, 0)
     log_comb = lf[l_] - lf[j] - lf[lj]
     with np.errstate(divide='ignore', invalid='ignore'):
-        log_ps = np.log(p_survival)
-        log_qs = np.log1p(-p_survival) if p_survival < 1 else NEG_INF
+        log_ps = np.log(p_s)
+        log_qs = np.log1p(-p_s) if p_s < 1 else NEG_INF
         term = np.where(j > 0, j * log_ps, 0.0) + np.where(lj > 0, lj * log_qs, 0.0)
-    surv = np.where(valid, log_comb + term + log_card[None, :], NEG_INF)
-    log_surv = logsumexp(surv, axis=1)
-    log_birth = poisson_log_pmf(birth_mean, n_max)
-    n = np.arange(n_max + 1)
-    # convolution: out[n] = logsumexp_j surv[j] + birth[n - j]
-    diff = n[:, None] - n[None, :]
-    conv = np.where(diff >= 0, log_surv[None, :] + log_birth[np.clip(diff, 0, None)], NEG_INF)
-    out = logsumexp(conv, axis=1)
-    return out - logsumexp(out)
+    mat = np.where(valid, log_comb + term, NEG_INF)
+    if len(_THIN_CACHE) > 64:
+        _THIN_CACHE.clear()
+    _THIN_CACHE[key] = mat
+    return mat
+
+
+class _Tri(dict):
+    """Per-N_max index helpers of the birth convolution (built on first use)."""
+
+    def __init__(self, kind):
+        super().__init__()
+        self.kind = kind
+
+    def __missing__(self, n_max):
+        n = np.arange(n_max + 1)
+        diff = n[:, None] - n[None, :]
+        value = diff >= 0 if self.kind == 'lower' else np.clip(diff, 0, None)
+        self[n_max] = value
+        return value
+
+
+_THIN_CACHE: dict = {}
+_LOWER = _Tri('lower')
+_DIFF = _Tri('diff')

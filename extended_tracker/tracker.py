@@ -319,17 +319,24 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     # existing components: gated (component, cell) pairs
     comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg))
     hidden = None if visibility is None else np.clip(1.0 - visibility, 0.0, 1.0)
-    upd = update_pairs(mix, comp, stats, cell, mc.rho, R, rate_scale, hidden, centroid_offset)
+    # existing components and the birth row (one GGIW per cell) in one batched update
+    birth_prior = _birth_prior(stats, cfg, area)
+    both = Mixture.concat([mix, birth_prior]) if n_comp else birth_prior
+    bcell = np.arange(n_cells)
+    pad = (lambda a, fill: None if a is None else  # noqa: E731
+           np.concatenate([a, np.full((n_cells,) + a.shape[1:], fill)]))
+    upd_all = update_pairs(both, np.concatenate([comp, n_comp + bcell]), stats,
+                           np.concatenate([cell, bcell]), mc.rho, R, pad(rate_scale, 1.0),
+                           pad(hidden, 0.0), pad(centroid_offset, 0.0))
+    k = len(comp)
+    fields_ = ('log_lik', 'alpha', 'beta', 'm', 'P', 'v', 'V')
+    upd = PairUpdate(*(getattr(upd_all, f)[:k] for f in fields_))
+    bupd = PairUpdate(*(getattr(upd_all, f)[k:] for f in fields_))
     p_d_pair = p_d[comp] if pair_p_d is None else pair_p_d(mix, comp, upd.m, upd.P)
     keep = p_d_pair > 0
     comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
-    upd = PairUpdate(*(getattr(upd, f)[keep] for f in ('log_lik', 'alpha', 'beta', 'm', 'P',
-                                                        'v', 'V')))
+    upd = PairUpdate(*(getattr(upd, f)[keep] for f in fields_))
     diag.pairs = len(comp)
-    # birth row: every cell
-    birth_prior = _birth_prior(stats, cfg, area)
-    bcell = np.arange(n_cells)
-    bupd = update_pairs(birth_prior, bcell, stats, bcell, mc.rho, R)
     log_pd0 = np.log(cfg.detection.p_d0)
 
     log_g = np.full((n_comp + 1, n_cells), NEG_INF)

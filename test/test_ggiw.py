@@ -208,3 +208,10 @@ def test_prediction_keeps_means_and_forgets_per_second():
     np.testing.assert_allclose(a.expected_extent(), mix.expected_extent(), rtol=1e-12)
     assert np.all(a.v > 6) and np.all(a.v < mix.v)
     np.testing.assert_allclose(a.m[:, :2], mix.m[:, :2] + 0.1 * mix.m[:, 2:])
+
+
+def test_log_gamma2_equals_scipy_multigammaln():
+    from extended_tracker.ggiw import log_gamma2
+
+    a = np.array([0.6, 1.0, 2.5, 7.3, 150.0, 1e5])
+    np.testing.assert_allclose(log_gamma2(a), [multigammaln(x, 2) for x in a], rtol=1e-13)
