@@ -314,29 +314,33 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     if predicted is None or not len(predicted['centre']) or not dist:
         return
     base = dist[len(dist) // 2]                      # a middle distance partition
+    labels, inverse, counts = np.unique(base, return_inverse=True, return_counts=True)
+    big = counts >= 4
+    if not np.any(big):
+        return
+    # centroids of all cells at once, then their squared gate distances to the objects
+    sums = np.zeros((len(labels), 2))
+    np.add.at(sums, inverse, points)
+    zbar = sums / counts[:, None]
     centre = predicted['centre']
+    Gi = predicted['gate_inv']
+    e = zbar[:, None, :] - centre[None, :, :]
+    d2 = (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
+          + Gi[None, :, 1, 1] * e[..., 1] ** 2)
+    near = (d2 < predicted['gate']) & big[:, None]
     rates = predicted['rate']
-    for lab in np.unique(base):
-        idx = np.flatnonzero(base == lab)
-        if len(idx) < 4:
-            continue
-        zbar = points[idx].mean(axis=0)
-        e = zbar[None, :] - centre
-        Gi = predicted['gate_inv']
-        d2 = (Gi[:, 0, 0] * e[:, 0] ** 2 + 2 * Gi[:, 0, 1] * e[:, 0] * e[:, 1]
-              + Gi[:, 1, 1] * e[:, 1] ** 2)
-        near = d2 < predicted['gate']
-        if not np.any(near):
-            continue
-        # objects whose predicted centre falls among the cell's points count too
-        k_pred = int(np.sum(near))
-        k_rate = expected_object_count(len(idx), float(np.median(rates[near])),
+    for c in np.flatnonzero(near.any(axis=1)):
+        idx = np.flatnonzero(inverse == c)
+        nc = near[c]
+        # objects whose gate holds the cell, and the count its size suggests
+        k_pred = int(nc.sum())
+        k_rate = expected_object_count(len(idx), float(np.median(rates[nc])),
                                        cfg.max_sub_objects)
         k = min(max(k_pred, k_rate), cfg.max_sub_objects, len(idx))
         if k < 2:
             continue
-        init = centre[near][:k] if k_pred >= k else None
+        init = centre[nc][:k] if k_pred >= k else None
         sub = kmeans_pp(points[idx], k, seed=seed, init=init)
-        labels = base.copy()
-        labels[idx] = base.max() + 1 + sub
-        pset.add(labels, cfg.max_partitions, cfg.max_cells)
+        new = base.copy()
+        new[idx] = base.max() + 1 + sub
+        pset.add(new, cfg.max_partitions, cfg.max_cells)
