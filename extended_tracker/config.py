@@ -121,8 +121,12 @@ class ReductionConfig:
     merge_distance: float = _f(4.0, 'squared Mahalanobis distance for merging one label', '',
                                0.0, 1e4)
     max_components: int = _f(150, 'cap on the number of components', '', 1, 100000)
-    split_weight: float = _f(0.4, 'a far component of a label this heavy gets a new label', '',
-                             0.0, 10.0)
+    max_semi_axis: float = _f(4.0, 'components with a larger semi-major axis are dropped '
+                              '(walls, not objects)', 'm', 0.0, 1000.0, lo_open=True)
+    max_position_std: float = _f(3.0, 'components whose position std grew beyond this are '
+                                 'dropped', 'm', 0.0, 1000.0, lo_open=True)
+    split_weight: float = _f(0.4, 'a far component of a label this heavy gets a new label, a '
+                             'lighter one is dropped', '', 0.0, 10.0)
 
 
 @dataclass(frozen=True)

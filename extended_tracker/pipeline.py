@@ -103,7 +103,7 @@ def _diag_template():
     d = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
          'partitions': 0, 'cells': 0, 'pairs': 0,
          'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
-         'capped_components': 0, 'beams': 0}
+         'capped_components': 0, 'oversized': 0, 'beams': 0}
     d.update({f'masked_{k}': 0 for k in INVALID_KINDS})
     return d
 
@@ -223,7 +223,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
         visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d)
     for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
-              'capped_cells', 'capped_components'):
+              'capped_cells', 'capped_components', 'oversized'):
         diag[k] = getattr(fdiag, k)
     card = np.exp(new_filter.log_card)
     new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,

@@ -48,7 +48,8 @@ def _sensor(ax, angle_lo, angle_hi, range_max):
     ax.plot([0], [0], marker='^', color='k', ms=8, zorder=5)
 
 
-def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=200_000):
+def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=200_000,
+             min_scans=10):
     """
     Draw a sequence of :class:`StepResult` into a PNG.
 
@@ -60,6 +61,8 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         Field of view to shade.
     is_rectangle : callable, optional
         ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes.
+    min_scans : int
+        Ids reported in fewer scans are drawn as faint grey traces without outlines.
 
     """
     fig, ax = plt.subplots(figsize=(10, 8), dpi=110)
@@ -81,9 +84,15 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         e = r.estimates
         for j, lab in enumerate(e.label.tolist()):
             tracks.setdefault(lab, []).append((e.m[j, :2], e.X[j], r, j))
+    short = 0
     for lab, seq in sorted(tracks.items()):
         col = id_colour(lab)
         xy = np.array([s[0] for s in seq])
+        if len(seq) < min_scans:
+            # short-lived ids: a faint trace only, so long tracks stay readable
+            short += 1
+            ax.plot(xy[:, 0], xy[:, 1], '-', color='0.55', lw=0.5, alpha=0.6)
+            continue
         ax.plot(xy[:, 0], xy[:, 1], '-', color=col, lw=1.2, alpha=0.9)
         # a few outlines along the way, the last one bold with the id
         every = max(1, len(seq) // 6)
@@ -99,7 +108,8 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
     ax.set_xlabel('x (m)')
     ax.set_ylabel('y (m)')
     n_scans = len(results)
-    ax.set_title(title or f'{n_scans} scans, {len(tracks)} ids')
+    ax.set_title((title or f'{n_scans} scans, {len(tracks)} ids')
+                 + f'\n(grey: {short} ids reported in fewer than {min_scans} scans)')
     if pts or bg:
         ax.legend(loc='upper right', fontsize=8, markerscale=10)
     _fit(ax, results, fov)

@@ -155,6 +155,7 @@ class StepDiagnostics:
     capped_partitions: int = 0
     capped_cells: int = 0
     capped_components: int = 0
+    oversized: int = 0
 
 
 def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
@@ -380,9 +381,22 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         for i in range(n_comp):
             vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
 
+    # nothing tracked here is that large: such components are walls and clutter lines
+    too_big = posterior.expected_extent()
+    tr = too_big[:, 0, 0] + too_big[:, 1, 1]
+    det_ = too_big[:, 0, 0] * too_big[:, 1, 1] - too_big[:, 0, 1] ** 2
+    major2 = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det_, 0.0))
+    # and a component that coasted until its position is unknown within metres would only
+    # claim far-away returns: it has no information left
+    pos_var = np.maximum(posterior.P[:, 0, 0], posterior.P[:, 1, 1])
+    oversized = (major2 > cfg.reduction.max_semi_axis ** 2) | \
+        (pos_var > cfg.reduction.max_position_std ** 2)
+    diag.oversized = int(oversized.sum())
+    posterior = posterior.take(~oversized)
     reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
                                      cfg.reduction.max_components)
-    reduced, next_label = _split_labels(reduced, cfg.reduction.split_weight, next_label)
+    reduced, next_label = _split_labels(reduced, cfg.reduction.split_weight,
+                                        cfg.reduction.merge_distance, next_label)
     diag.capped_components = capped
     diag.components = len(reduced)
 
@@ -423,11 +437,34 @@ def gate_threshold(cfg: TrackerConfig) -> float:
 
 
 def _label_births(pset, birth_cells, next_label):
-    """Labels of new components: one per coarse distance cluster (threshold d_max)."""
-    if not len(birth_cells):
+    """
+    Labels of new components: cells that share detections get one label.
+
+    Overlapping cells (a cell and its sub-cells from other partitions) are alternative
+    explanations of the same returns, so their birth hypotheses are one new object and
+    merge; cells with no detection in common are different objects.
+    """
+    k = len(birth_cells)
+    if not k:
         return np.zeros(0, dtype=np.int64), next_label
-    cluster = pset.coarse_labels[[pset.cells[c][0] for c in birth_cells]]
-    uniq, inverse = np.unique(cluster, return_inverse=True)
+    parent = list(range(k))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    owner = {}
+    for i, c in enumerate(birth_cells):
+        for z in pset.cells[c].tolist():
+            j = owner.setdefault(z, i)
+            if j != i:
+                ri, rj = root(i), root(j)
+                if ri != rj:
+                    parent[max(ri, rj)] = min(ri, rj)
+    roots = np.array([root(i) for i in range(k)])
+    uniq, inverse = np.unique(roots, return_inverse=True)
     return (next_label + inverse).astype(np.int64), next_label + len(uniq)
 
 
@@ -444,28 +481,38 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     return out
 
 
-def _split_labels(mix: Mixture, split_weight: float, next_label: int):
+def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next_label: int):
     """
-    Give a fresh label to a heavy component that shares its label with a heavier one.
+    Resolve labels whose components ended up far apart after merging.
 
-    After merging, two components of one label are far apart: two objects now stand where
-    one track was (two pedestrians walking side by side separating). The heaviest keeps the
-    label.
+    A far component (outside the merge distance of its label's heaviest) that is heavy
+    becomes a new object with a fresh label (two pedestrians side by side separating); a
+    light one is dropped: one object is not in two places, and keeping it makes the
+    label's reported position jump between the two.
     """
     if not len(mix):
         return mix, next_label
     label = mix.label.copy()
+    keep = np.ones(len(mix), dtype=bool)
     order = np.argsort(-mix.w, kind='stable')
-    seen = set()
+    head = {}
     for i in order:
         lab = int(label[i])
-        if lab in seen:
-            if mix.w[i] >= split_weight:
-                label[i] = next_label
-                next_label += 1
+        j = head.get(lab)
+        if j is None:
+            head[lab] = i
+            continue
+        e = mix.m[i, :2] - mix.m[j, :2]
+        d2 = float(e @ inv2(mix.P[j, :2, :2]) @ e)
+        if d2 <= merge_distance:
+            continue
+        if mix.w[i] >= split_weight:
+            label[i] = next_label
+            head[next_label] = i
+            next_label += 1
         else:
-            seen.add(lab)
-    return replace(mix, label=label), next_label
+            keep[i] = False
+    return replace(mix, label=label).take(keep), next_label
 
 
 def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None) -> Estimates:
