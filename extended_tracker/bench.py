@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 import resource
 import time
 
@@ -125,14 +126,70 @@ def _rss_mb():
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def bench_scaling(png: str, scans: int = 40):
+    """Time against objects (1-50, 361 beams) and against beams (361-4000, 10 objects)."""
+    cfg = from_dict({'background': {'enabled': False}})
+    rows_o, rows_b = [], []
+    for n in (1, 2, 5, 10, 20, 30, 40, 50):
+        rows_o.append((n, _median_step(crowd_scene(n, seed=n), cfg, scans)))
+    for beams in (361, 721, 1081, 2000, 3000, 4000):
+        rows_b.append((beams, _median_step(crowd_scene(10, seed=3, beams=beams), cfg, scans)))
+    print('\nscaling (median ms per scan): objects ' +
+          ', '.join(f'{n}: {t:.1f}' for n, t in rows_o) + ' | beams (10 objects) ' +
+          ', '.join(f'{b}: {t:.1f}' for b, t in rows_b))
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4), dpi=110)
+    a1.plot(*zip(*rows_o), 'o-')
+    a1.set_xlabel('objects (361 beams)')
+    a1.set_ylabel('median ms per scan (pipeline.step)')
+    a2.plot(*zip(*rows_b), 'o-')
+    a2.set_xlabel('beams (10 objects)')
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    Path(png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png)
+    plt.close(fig)
+    print(f'scaling curves: {png}')
+
+
+def _median_step(scene, cfg, scans):
+    state = PipelineState.initial(cfg)
+    times = []
+    for k, (scan, _) in enumerate(simulate(scene, (scans + 10) / 10.0, seed=1)):
+        state, res = step(state, scan, cfg)
+        if k >= 10:
+            times.append(res.processing_time)
+    return float(np.median(times) * 1e3)
+
+
+def bench_node():
+    try:
+        from .ros.bench_node import node_overhead
+    except ImportError as err:         # no ROS in this environment
+        print(f'\nnode overhead: skipped ({err})')
+        return
+    r = node_overhead()
+    print(f"\nnode callback (step + messages + publish): median {r['callback_median_ms']:.2f} ms, "
+          f"p99 {r['callback_p99_ms']:.2f} ms; step alone {r['step_median_ms']:.2f} ms; "
+          f"overhead {r['overhead_median_ms']:.2f} ms")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog='extended-tracker bench')
     p.add_argument('--quick', action='store_true', help='fewer scans per case')
     p.add_argument('--memory', type=int, default=0, help='also run N scans for memory')
+    p.add_argument('--png', default='out/bench/scaling.png', help='scaling curves PNG')
     args = p.parse_args(argv)
     scans = 60 if args.quick else 300
     bench_filter([1, 2, 4, 10, 20, 50], scans)
     bench_pipeline(scans)
+    bench_node()
+    bench_scaling(args.png, 20 if args.quick else 60)
     if args.memory:
         bench_memory(args.memory)
     return 0

@@ -1,0 +1,58 @@
+"""Node overhead: the callback's total time against ``pipeline.step`` alone (in-process)."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+
+def node_overhead(scans: int = 200) -> dict:
+    """Feed simulated scans straight into ``TrackerNode.on_scan``; time both."""
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    os.environ.pop('ROS_LOCALHOST_ONLY', None)
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import LaserScan
+
+    from ..sim.bag import scan_data
+    from ..sim.laser import simulate, tutorial_scene
+    from .convert import fill
+    from .node import TrackerNode
+
+    msgs = [fill(LaserScan(), scan_data(s)) for s, _ in simulate(tutorial_scene(),
+                                                                   scans / 10.0, seed=9)]
+    ctx = Context()
+    rclpy.init(context=ctx)
+    try:
+        node = TrackerNode(context=ctx,
+                           parameter_overrides=[Parameter('background.enabled', value=False)])
+        total, inner = [], []
+        import extended_tracker.ros.node as node_mod
+
+        real_step = node_mod.step
+
+        def timed_step(state, scan, cfg):
+            t0 = time.perf_counter()
+            out = real_step(state, scan, cfg)
+            inner.append(time.perf_counter() - t0)
+            return out
+
+        node_mod.step = timed_step
+        try:
+            for m in msgs:
+                t0 = time.perf_counter()
+                node.on_scan(m)
+                total.append(time.perf_counter() - t0)
+        finally:
+            node_mod.step = real_step
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=ctx)
+    total, inner = np.array(total[20:]) * 1e3, np.array(inner[20:]) * 1e3
+    return {'callback_median_ms': float(np.median(total)),
+            'step_median_ms': float(np.median(inner)),
+            'overhead_median_ms': float(np.median(total - inner)),
+            'callback_p99_ms': float(np.percentile(total, 99))}
