@@ -18,6 +18,8 @@ from scipy.special import digamma, polygamma
 
 from .ggiw import D, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
 
+ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
+
 
 def merge_gamma(w, alpha, beta):
     """
@@ -193,10 +195,19 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     out = []
     starts = np.flatnonzero(first)
     bounds = np.append(starts, len(order))
+    absorbed = []
     for a, b in zip(bounds[:-1], bounds[1:]):
         if lab_sorted[a] in far_labels:
             continue
-        out.append(order[a:b])
+        grp = order[a:b]
+        if len(grp) > 1:
+            # members under 1 % of the head's weight move it by less than that: their
+            # weight is added to the head instead of a full moment match
+            light = mix.w[grp[1:]] < ABSORB_RATIO * mix.w[grp[0]]
+            if np.all(light):
+                absorbed.append(grp)
+                continue
+        out.append(grp)
     for lab in far_labels:
         idx = np.flatnonzero(mix.label == lab)
         remaining = idx[np.argsort(-mix.w[idx], kind='stable')]
@@ -212,6 +223,10 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     parts = []
     if singles:
         parts.append(mix.take(np.concatenate(singles)))
+    if absorbed:
+        heads = np.array([g[0] for g in absorbed])
+        parts.append(mix.take(heads).with_weights(
+            np.array([mix.w[g].sum() for g in absorbed])))
     if multi:
         parts.append(merge_groups(mix, multi))
     merged = Mixture.concat(parts)

@@ -146,3 +146,20 @@ def test_filter_step_cardinality_sums_to_one(seed, mode):
         assert np.isclose(card.sum(), 1.0, atol=1e-9)
         assert len(est) <= len(np.unique(state.mixture.label))
         assert is_spd(state.mixture.P) if len(state.mixture) else True
+
+
+@given(point_sets(max_n=90), st.floats(0.05, 1.5))
+def test_dense_and_sparse_spanning_forests_agree(pts, d_max):
+    """Boruvka on the dense matrix and scipy's sparse MST: same forest weight and size."""
+    import extended_tracker.partition as P
+
+    dense = P._mst_dense(pts, d_max)
+    saved = P.DENSE_MST_MAX
+    try:
+        P.DENSE_MST_MAX = -1
+        sparse = P._mst_edges(pts, d_max)
+    finally:
+        P.DENSE_MST_MAX = saved
+    assert len(dense[2]) == len(sparse[2])
+    # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
+    assert np.isclose(dense[2].sum(), sparse[2].sum(), rtol=1e-12, atol=1e-9)

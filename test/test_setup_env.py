@@ -10,6 +10,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_dds_discovery_is_loopback_only():
     assert os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'
     assert 'ROS_LOCALHOST_ONLY' not in os.environ
+    assert 1 <= int(os.environ['ROS_DOMAIN_ID']) <= 100      # a domain of the test run's own
 
 
 def test_ros2_run_layout_and_ament_index():
