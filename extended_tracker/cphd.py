@@ -107,18 +107,37 @@ def poisson_log_pmf(mean: float, n_max: int) -> np.ndarray:
     return n * np.log(mean) - mean - gammaln(n + 1)
 
 
+def _log_factorial(k: int) -> np.ndarray:
+    """``log(i!)`` for ``i = 0..k`` (a cached table grown on demand)."""
+    global _LF
+    if len(_LF) <= k:
+        _LF = gammaln(np.arange(max(k + 1, 2 * len(_LF))) + 1.0)
+    return _LF[:k + 1]
+
+
+_LF = gammaln(np.arange(256) + 1.0)
+_FALLING: dict = {}
+
+
 def _log_lambda_table(log_q0: float, n_max: int, j_max: int) -> np.ndarray:
     """``T[n, j] = log(n!/(n-j)!) + (n-j) log q0`` for ``j <= n``, else ``-inf``."""
-    n = np.arange(n_max + 1)[:, None]
-    j = np.arange(j_max + 1)[None, :]
-    lf = gammaln(np.arange(n_max + 2) + 1)
-    valid = j <= n
-    nj = np.where(valid, n - j, 0)
-    with np.errstate(invalid='ignore'):
-        # 0 * log q0 must be 0 even when q0 = 0 (log q0 = -inf)
-        q_term = np.where(nj > 0, nj * log_q0, 0.0)
-    T = lf[n] - lf[nj] + q_term
-    return np.where(valid, T, NEG_INF)
+    key = (n_max, j_max)
+    base = _FALLING.get(key)
+    if base is None:
+        n = np.arange(n_max + 1)[:, None]
+        j = np.arange(j_max + 1)[None, :]
+        lf = _log_factorial(n_max + 1)
+        valid = j <= n
+        nj = np.where(valid, n - j, 0)
+        base = (np.where(valid, lf[n] - lf[nj], NEG_INF), nj)
+        if len(_FALLING) > 256:
+            _FALLING.clear()
+        _FALLING[key] = base
+    falling, nj = base
+    if log_q0 == NEG_INF:
+        # 0 * log q0 must be 0 even when q0 = 0
+        return np.where(nj > 0, NEG_INF, falling)
+    return falling + nj * log_q0
 
 
 def _partition_with_singletons(cells, cell_size, log_a, log_A, T, W1, log_pc_fact, lam_P,
@@ -197,7 +216,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     log_a = log_psi - cell_log_c
     k_most = max((len(p) for p in partitions), default=0)
     T = _log_lambda_table(log_q0, n_max, k_most)
-    lf = gammaln(np.arange(k_most + 2) + 1)
+    lf = _log_factorial(k_most + 1)
     need = k_most + 1
     if len(log_clutter_pmf) < need:
         log_clutter_pmf = np.concatenate(

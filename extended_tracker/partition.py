@@ -337,14 +337,16 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     if predicted is None or not len(predicted['centre']) or not dist:
         return
     base = dist[len(dist) // 2]                      # a middle distance partition
-    labels, inverse, counts = np.unique(base, return_inverse=True, return_counts=True)
-    big = counts >= 4
-    if not np.any(big):
+    # labels are root detection indices (< m): bincount instead of unique / add.at
+    counts_all = np.bincount(base, minlength=len(points))
+    labels = np.flatnonzero(counts_all >= 4)
+    if not len(labels):
         return
-    # centroids of all cells at once, then their squared gate distances to the objects
-    sums = np.zeros((len(labels), 2))
-    np.add.at(sums, inverse, points)
-    zbar = sums / counts[:, None]
+    counts = counts_all[labels]
+    zbar = np.column_stack([np.bincount(base, weights=points[:, 0], minlength=len(points)),
+                            np.bincount(base, weights=points[:, 1],
+                                        minlength=len(points))])[labels] / counts[:, None]
+    big = np.ones(len(labels), dtype=bool)
     centre = predicted['centre']
     Gi = predicted['gate_inv']
     e = zbar[:, None, :] - centre[None, :, :]
@@ -353,7 +355,7 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     near = (d2 < predicted['gate']) & big[:, None]
     rates = predicted['rate']
     for c in np.flatnonzero(near.any(axis=1)):
-        idx = np.flatnonzero(inverse == c)
+        idx = np.flatnonzero(base == labels[c])
         nc = near[c]
         # objects whose gate holds the cell, and the count its size suggests
         k_pred = int(nc.sum())
