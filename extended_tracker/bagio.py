@@ -82,7 +82,6 @@ def build_message(store, typename: str, data: dict | None = None):
 
     """
     import numpy as np
-    from rosbags.typesys.store import Nodetype  # noqa: F401  (documented enum values)
 
     data = data or {}
     _, fields = store.fielddefs[typename]
@@ -98,6 +97,7 @@ def build_message(store, typename: str, data: dict | None = None):
 
 
 def _build_field(store, kind, detail, value, np):
+    # rosbags Nodetype: 1 BASE, 2 NAME (nested message), 3 ARRAY, 4 SEQUENCE
     kind = int(kind)
     if kind == 1:                                   # BASE
         base = detail[0]

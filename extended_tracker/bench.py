@@ -37,27 +37,35 @@ def _stats(seconds):
     return float(np.median(ms)), float(np.percentile(ms, 99)), float(np.max(ms))
 
 
-def bench_filter(counts, scans, warm=10):
-    """Median and p99 of one filter step on the returns of N pedestrians."""
+def bench_filter(counts, scans, warm=10, run_scans=60):
+    """
+    Median and p99 of one filter step on the returns of N pedestrians.
+
+    Each case repeats short runs of ``run_scans`` scans over several seeds, so that the
+    walkers are still in view (over a long run they walk out of the field of view).
+    """
     cfg = from_dict({'background': {'enabled': False}})
     print('filter step (partition, predict, update, reduce, extract), 361 beams, p_D const')
     print(f'{"objects":>8s} {"detections":>10s} {"cells":>6s} {"partitions":>10s} '
           f'{"median ms":>9s} {"p99 ms":>7s}')
     rows = []
     for n in counts:
-        data = simulate(crowd_scene(n, seed=n), (scans + warm) / 10.0, seed=n)
-        pts = [scan_to_points(s).points for s, _ in data]
-        state = FilterState.initial(cfg)
         times, dets, cells, parts = [], [], [], []
-        for k, p in enumerate(pts):
-            t0 = time.perf_counter()
-            state, est, diag = filter_step(state, p, 0.1, cfg, clutter_area=0.5 * math.pi * 169)
-            dt = time.perf_counter() - t0
-            if k >= warm:
-                times.append(dt)
-                dets.append(len(p))
-                cells.append(diag.cells)
-                parts.append(diag.partitions)
+        for rep in range(max(1, scans // run_scans)):
+            seed = 1000 * n + rep
+            data = simulate(crowd_scene(n, seed=seed), (run_scans + warm) / 10.0, seed=seed)
+            state = FilterState.initial(cfg)
+            for k, (scan, _) in enumerate(data):
+                p = scan_to_points(scan).points
+                t0 = time.perf_counter()
+                state, est, diag = filter_step(state, p, 0.1, cfg,
+                                               clutter_area=0.5 * math.pi * 169)
+                dt = time.perf_counter() - t0
+                if k >= warm:
+                    times.append(dt)
+                    dets.append(len(p))
+                    cells.append(diag.cells)
+                    parts.append(diag.partitions)
         med, p99, _ = _stats(times)
         rows.append((n, np.mean(dets), np.mean(cells), med))
         print(f'{n:8d} {np.mean(dets):10.0f} {np.mean(cells):6.0f} {np.mean(parts):10.1f} '

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import yaml
 
-from .config import from_dict, to_dict, TrackerConfig
+from .config import from_dict, TrackerConfig
 from .errors import ConfigError
 
 

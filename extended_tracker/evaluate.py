@@ -8,7 +8,6 @@ scan-shadow and constant p_D, and prints (or writes into the README) one table.
 
 from __future__ import annotations
 
-from dataclasses import replace
 import json
 from pathlib import Path
 
@@ -180,4 +179,4 @@ def _plot(path, stamps, per, counts):
 
 
 __all__ = ['SCENARIOS', 'VARIANTS', 'evaluate_bag', 'results_table', 'run_scenario',
-           'write_readme_results', 'replace']
+           'write_readme_results']

@@ -11,8 +11,6 @@ calls.
 
 from __future__ import annotations
 
-from dataclasses import fields
-
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from extended_tracker_msgs.msg import ExtendedObjectArray
 from rcl_interfaces.msg import (
@@ -182,4 +180,4 @@ def main(args=None) -> None:
         rclpy.try_shutdown()
 
 
-__all__ = ['TrackerNode', 'main', 'parameter_descriptors', 'fields']
+__all__ = ['TrackerNode', 'main', 'parameter_descriptors']
