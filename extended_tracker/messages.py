@@ -106,6 +106,10 @@ def _marker(header, ns, mid, mtype, action, **kw) -> dict:
     return m
 
 
+_THETA = np.linspace(0, 2 * math.pi, ELLIPSE_SEGMENTS + 1)
+_CORNERS = np.array([(1, 1), (-1, 1), (-1, -1), (1, -1), (1, 1)], dtype=float)
+
+
 def outline_points(centre, X, rectangle: bool) -> list:
     """Closed outline: the ellipse (p-c)' X^-1 (p-c) = 1, or the second-moment rectangle."""
     vals, vecs = np.linalg.eigh(X)
@@ -113,13 +117,11 @@ def outline_points(centre, X, rectangle: bool) -> list:
     a, b = math.sqrt(vals[1]), math.sqrt(vals[0])
     u, v = vecs[:, 1], vecs[:, 0]
     if rectangle:
-        L, W = math.sqrt(3.0) * a, math.sqrt(3.0) * b
-        corners = [(1, 1), (-1, 1), (-1, -1), (1, -1), (1, 1)]
-        pts = [centre + s * u * L / 2 + t * v * W / 2 for s, t in corners]
+        half_l, half_w = math.sqrt(3.0) * a / 2, math.sqrt(3.0) * b / 2
+        pts = centre + np.outer(_CORNERS[:, 0] * half_l, u) + np.outer(_CORNERS[:, 1] * half_w, v)
     else:
-        th = np.linspace(0, 2 * math.pi, ELLIPSE_SEGMENTS + 1)
-        pts = [centre + a * math.cos(t) * u + b * math.sin(t) * v for t in th]
-    return [{'x': float(p[0]), 'y': float(p[1]), 'z': 0.0} for p in pts]
+        pts = centre + np.outer(a * np.cos(_THETA), u) + np.outer(b * np.sin(_THETA), v)
+    return [{'x': x, 'y': y, 'z': 0.0} for x, y in pts.tolist()]
 
 
 def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:

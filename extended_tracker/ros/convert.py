@@ -26,7 +26,11 @@ def fill(msg, data: dict):
             fill(getattr(msg, name), value)
         elif isinstance(value, list) and value and isinstance(value[0], dict):
             cls = _element_class(type(msg), name)
-            setattr(msg, name, [fill(cls(), v) for v in value])
+            if all(isinstance(x, float) for x in value[0].values()):
+                # flat elements (points, colours): one constructor call each
+                setattr(msg, name, [cls(**v) for v in value])
+            else:
+                setattr(msg, name, [fill(cls(), v) for v in value])
         elif isinstance(value, np.ndarray):
             current = getattr(msg, name)
             if isinstance(current, np.ndarray):
