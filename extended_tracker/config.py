@@ -233,12 +233,12 @@ def _check_leaf(name: str, value: Any, f) -> None:
         if not math.isfinite(value):
             raise ConfigError(f'{name} must be finite, got {value!r}')
     lo, hi = meta['min'], meta['max']
+    unit = f' {meta["unit"]}' if meta['unit'] else ''
     if lo is not None and (value < lo or (meta['lo_open'] and value == lo)):
         op = '>' if meta['lo_open'] else '>='
-        raise ConfigError(f'{name} must be {op} {lo} {meta["unit"]}, got {value!r}'.replace(
-            '  ', ' '))
+        raise ConfigError(f'{name} must be {op} {lo}{unit}, got {value!r}')
     if hi is not None and value > hi:
-        raise ConfigError(f'{name} must be <= {hi} {meta["unit"]}, got {value!r}')
+        raise ConfigError(f'{name} must be <= {hi}{unit}, got {value!r}')
 
 
 def validate(cfg: TrackerConfig) -> None:

@@ -1,0 +1,54 @@
+"""The configuration tree: every leaf validated, with the bad value and range in the error."""
+
+import pytest
+
+from extended_tracker.config import from_dict, from_flat, iter_leaves, to_flat, TrackerConfig
+from extended_tracker.configio import load_yaml
+from extended_tracker.errors import ConfigError
+
+
+@pytest.mark.parametrize('flat, message', [
+    ({'model.rho': 0.0}, 'model.rho must be > 0.0, got 0.0'),
+    ({'model.n_max': 500}, 'model.n_max must be <= 200 objects, got 500'),
+    ({'partition.d_max': -1.0}, 'partition.d_max must be > 0.0 m, got -1.0'),
+    ({'model.mode': 'x'}, "model.mode must be one of ('cphd', 'phd'), got 'x'"),
+    ({'background.enabled': 'yes'}, 'background.enabled must be true or false'),
+    ({'birth.regions': [1.0, 2.0]}, 'x, y, std triples'),
+    ({'model.n_max': 2.5}, 'model.n_max must be an integer'),
+    ({'model.sigma_accel': float('nan')}, 'must be finite'),
+    ({'partition.d_min': 0.9, 'partition.d_max': 0.5}, 'd_min (0.9) must not exceed'),
+])
+def test_bad_values_are_refused_with_the_reason(flat, message):
+    with pytest.raises(ConfigError) as err:
+        from_flat(flat)
+    assert message in str(err.value)
+
+
+def test_unknown_keys_and_sections_are_refused():
+    with pytest.raises(ConfigError, match='unknown keys in model'):
+        from_dict({'model': {'rhoo': 1.0}})
+    with pytest.raises(ConfigError, match='unknown configuration sections'):
+        from_dict({'filterr': {}})
+    with pytest.raises(ConfigError, match='section.key'):
+        from_flat({'rho': 1.0})
+
+
+def test_round_trips_and_documentation():
+    cfg = TrackerConfig()
+    assert from_flat(to_flat(cfg)) == cfg
+    assert from_dict({'model': {'rho': 1}}).model.rho == 1.0      # ints accepted as floats
+    for name, f, _ in iter_leaves(cfg):
+        assert f.metadata['description'], name
+
+
+def test_yaml_errors_are_config_errors(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('model: [1, 2')
+    with pytest.raises(ConfigError, match='cannot read config'):
+        load_yaml(bad)
+    with pytest.raises(ConfigError, match='cannot read config'):
+        load_yaml(tmp_path / 'missing.yaml')
+    lst = tmp_path / 'list.yaml'
+    lst.write_text('- 1\n- 2\n')
+    with pytest.raises(ConfigError, match='must be a mapping'):
+        load_yaml(lst)
