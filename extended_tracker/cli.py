@@ -135,7 +135,10 @@ def cmd_bench(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog='extended-tracker', description=__doc__.split('\n')[1])
+    p = argparse.ArgumentParser(
+        prog='extended-tracker',
+        description='Extended object tracking in 2D laser scans: replay bags, simulate '
+                    'scenes, evaluate against truth, measure speed.')
     sub = p.add_subparsers(dest='command', required=True)
     r = sub.add_parser('replay', help='track the LaserScans of a bag into a new MCAP bag')
     r.add_argument('input', help='ROS 2 bag folder (sqlite3 or MCAP) or ROS 1 .bag')

@@ -124,8 +124,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
     truth_seq, est_seq, stamps, counts = [], [], [], []
     try:
         reader = Reader(output_bag)
-        reader.open()
-    except Exception as err:
+    except Exception as err:  # rosbags raises several unrelated types for broken bags
         msg = f'cannot read {output_bag}: {err}'
         raise BagError(msg) from err
     with reader:
