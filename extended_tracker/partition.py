@@ -277,6 +277,14 @@ def expected_object_count(n_points: int, rate: float, k_max: int) -> int:
     return int(k[np.argmax(log_p)])
 
 
+def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -> np.ndarray:
+    """Vectorised :func:`expected_object_count` over cells."""
+    k = np.arange(1, k_max + 1)[None, :]
+    mean = k * np.maximum(rate, 1e-9)[:, None]
+    log_p = n_points[:, None] * np.log(mean) - mean
+    return np.argmax(log_p, axis=1) + 1
+
+
 def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> PartitionSet:
     """
     All partitions of one scan's detections.
@@ -353,18 +361,21 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     d2 = (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
           + Gi[None, :, 1, 1] * e[..., 1] ** 2)
     near = (d2 < predicted['gate']) & big[:, None]
-    rates = predicted['rate']
-    for c in np.flatnonzero(near.any(axis=1)):
+    cand = np.flatnonzero(near.any(axis=1))
+    if not len(cand):
+        return
+    nc_all = near[cand]
+    # objects whose gate holds the cell, and the count its size suggests at their mean rate
+    k_pred = nc_all.sum(axis=1)
+    rate = (nc_all @ predicted['rate']) / k_pred
+    k_rate = expected_object_counts(counts[cand], rate, cfg.max_sub_objects)
+    k_all = np.minimum(np.minimum(np.maximum(k_pred, k_rate), cfg.max_sub_objects),
+                       counts[cand])
+    for row in np.flatnonzero(k_all >= 2):
+        c = cand[row]
+        k = int(k_all[row])
         idx = np.flatnonzero(base == labels[c])
-        nc = near[c]
-        # objects whose gate holds the cell, and the count its size suggests
-        k_pred = int(nc.sum())
-        k_rate = expected_object_count(len(idx), float(np.median(rates[nc])),
-                                       cfg.max_sub_objects)
-        k = min(max(k_pred, k_rate), cfg.max_sub_objects, len(idx))
-        if k < 2:
-            continue
-        init = centre[nc][:k] if k_pred >= k else None
+        init = centre[nc_all[row]][:k] if k_pred[row] >= k else None
         sub = kmeans_pp(points[idx], k, seed=seed, init=init)
         new = base.copy()
         new[idx] = base.max() + 1 + sub

@@ -163,3 +163,11 @@ def test_dense_and_sparse_spanning_forests_agree(pts, d_max):
     assert len(dense[2]) == len(sparse[2])
     # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
     assert np.isclose(dense[2].sum(), sparse[2].sum(), rtol=1e-12, atol=1e-9)
+
+
+@given(st.lists(st.integers(1, 200), min_size=1, max_size=10), st.floats(0.5, 40.0))
+def test_vectorised_object_count_matches_scalar(ns, rate):
+    from extended_tracker.partition import expected_object_count, expected_object_counts
+
+    got = expected_object_counts(np.array(ns), np.full(len(ns), rate), 4)
+    assert got.tolist() == [expected_object_count(n, rate, 4) for n in ns]
