@@ -201,16 +201,16 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     log_w = np.asarray(log_w, dtype=float)
     n_comp, n_cells = log_g.shape
     n_max = len(log_card) - 1
-    log_nbar = logsumexp(log_w) if n_comp else NEG_INF
+    log_nbar = lse1(log_w) if n_comp else NEG_INF
     if not np.isfinite(log_nbar):
         # no predicted objects: only clutter explains the scan
         log_nbar = 0.0
         log_q0 = 0.0
     else:
-        log_q0 = logsumexp(log_w + log_qd) - log_nbar
+        log_q0 = lse1(log_w + log_qd) - log_nbar
     # log a_W = log(psi_W / c^W), psi_W = sum_i w_i g_iW / Nbar
     if n_comp:
-        log_psi = logsumexp(log_w[:, None] + log_g, axis=0) - log_nbar
+        log_psi = lse_rows((log_w[:, None] + log_g).T) - log_nbar
     else:
         log_psi = np.full(n_cells, NEG_INF)
     log_a = log_psi - cell_log_c
@@ -228,7 +228,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
 
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
-    W1 = logsumexp(log_n[1:, None] + log_card[1:, None] + T[:-1, :], axis=0)
+    W1 = lse_rows((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
     n_part = len(partitions)
     lam_P = np.full((n_part, n_max + 1), NEG_INF)
     u0_terms = np.full(n_part, NEG_INF)
@@ -264,12 +264,12 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
             _partition_with_singletons(self_cells, cell_size, log_a, float(log_A[p_idx]),
                                        T, W1, log_pc_fact, lam_P, u0_terms, log_u_cell, p_idx)
 
-    per_partition = logsumexp(lam_P + log_card[None, :], axis=1)
-    log_L = logsumexp(per_partition)
+    per_partition = lse_rows(lam_P + log_card[None, :])
+    log_L = lse1(per_partition)
     log_part_weight = per_partition - log_L
-    log_u0 = logsumexp(u0_terms) - log_nbar - log_L
+    log_u0 = lse1(u0_terms) - log_nbar - log_L
     log_u_cell = log_u_cell - log_nbar - log_L
-    log_card_post = log_card + logsumexp(lam_P, axis=0) - log_L
+    log_card_post = log_card + lse_rows(lam_P.T) - log_L
 
     log_w_missed = log_w + log_qd + log_u0
     log_w_det = log_w[:, None] + log_g - cell_log_c[None, :] + log_u_cell[None, :]

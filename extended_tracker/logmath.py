@@ -30,6 +30,8 @@ def logsumexp(a, axis=None):
 
 def lse1(a: np.ndarray) -> float:
     """``logsumexp`` of a 1-D float array, for the hot loops (no argument checking)."""
+    if not a.size:
+        return -np.inf
     m = a.max()
     if m == -np.inf:
         return -np.inf

@@ -1,0 +1,32 @@
+"""The package's log-sum-exp helpers against scipy.special.logsumexp (the oracle)."""
+
+from hypothesis import given, strategies as st
+import numpy as np
+from scipy.special import logsumexp as scipy_lse
+
+from extended_tracker.logmath import logsumexp, lse1, lse_rows
+
+values = st.lists(st.one_of(st.floats(-800, 800), st.just(-np.inf)), min_size=1, max_size=12)
+
+
+@given(st.lists(values, min_size=1, max_size=5).filter(
+    lambda rows: len({len(r) for r in rows}) == 1))
+def test_equal_to_scipy(rows):
+    a = np.array(rows, dtype=float)
+    with np.errstate(divide='ignore'):
+        ref_rows = scipy_lse(a, axis=1)
+        ref_cols = scipy_lse(a, axis=0)
+        ref_all = scipy_lse(a)
+    # rounding: both sum exp(a - max) in double precision
+    np.testing.assert_allclose(lse_rows(a), ref_rows, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(logsumexp(a, axis=1), ref_rows, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(logsumexp(a, axis=0), ref_cols, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(logsumexp(a), ref_all, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(lse1(a[0]), scipy_lse(a[0]), rtol=1e-12, atol=1e-12)
+
+
+def test_empty_and_all_minus_infinity():
+    assert lse1(np.zeros(0)) == -np.inf
+    assert logsumexp(np.zeros(0)) == -np.inf
+    assert lse1(np.full(3, -np.inf)) == -np.inf
+    assert np.all(lse_rows(np.full((2, 3), -np.inf)) == -np.inf)
