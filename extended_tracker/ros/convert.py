@@ -19,6 +19,24 @@ def _element_class(msg_cls, field: str):
     return getattr(module, value_type.name)
 
 
+@lru_cache(maxsize=None)
+def _shared_defaults(msg_cls, present: frozenset) -> dict:
+    """
+    One default instance for each message-typed field of ``msg_cls`` absent from the data.
+
+    These are never filled (fill only writes the fields present), so every new message can
+    share them; a Marker then skips building its texture image, mesh file and lifetime.
+    """
+    shared = {}
+    for name in msg_cls.get_fields_and_field_types():
+        if name in present:
+            continue
+        default = getattr(msg_cls(), name)
+        if hasattr(default, 'get_fields_and_field_types'):
+            shared[name] = default
+    return shared
+
+
 def fill(msg, data: dict):
     """Set the fields of an rclpy message from nested plain data; returns ``msg``."""
     for name, value in data.items():
@@ -30,7 +48,8 @@ def fill(msg, data: dict):
                 # flat elements (points, colours): one constructor call each
                 setattr(msg, name, [cls(**v) for v in value])
             else:
-                setattr(msg, name, [fill(cls(), v) for v in value])
+                setattr(msg, name, [fill(cls(**_shared_defaults(cls, frozenset(v))), v)
+                                    for v in value])
         elif isinstance(value, np.ndarray):
             current = getattr(msg, name)
             if isinstance(current, np.ndarray):
