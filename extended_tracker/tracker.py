@@ -294,9 +294,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     -----
     The components of the update are the predicted mixture plus one row for the uniform
     birth intensity (weight ``birth.rate * dt``); its detected hypotheses become new tracks,
-    so birth is driven by the cells the existing tracks explain poorly. All new components
-    born from cells of one coarse distance cluster share a label, so that the many
-    overlapping cells of one new object merge into one track.
+    so birth is driven by the cells the existing tracks explain poorly. New components from
+    cells that share detections share a label, so that the overlapping cells of one new
+    object merge into one track.
 
     """
     mc = cfg.model
@@ -324,11 +324,10 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     birth_prior = _birth_prior(stats, cfg, area)
     both = Mixture.concat([mix, birth_prior]) if n_comp else birth_prior
     bcell = np.arange(n_cells)
-    pad = (lambda a, fill: None if a is None else  # noqa: E731
-           np.concatenate([a, np.full((n_cells,) + a.shape[1:], fill)]))
     upd_all = update_pairs(both, np.concatenate([comp, n_comp + bcell]), stats,
-                           np.concatenate([cell, bcell]), mc.rho, R, pad(rate_scale, 1.0),
-                           pad(hidden, 0.0), pad(centroid_offset, 0.0))
+                           np.concatenate([cell, bcell]), mc.rho, R,
+                           _pad(rate_scale, n_cells, 1.0), _pad(hidden, n_cells, 0.0),
+                           _pad(centroid_offset, n_cells, 0.0))
     k = len(comp)
     fields_ = ('log_lik', 'alpha', 'beta', 'm', 'P', 'v', 'V')
     upd = PairUpdate(*(getattr(upd_all, f)[:k] for f in fields_))
@@ -347,10 +346,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     mu_b = birth_intensity(cfg, state.dt)
     with np.errstate(divide='ignore'):
         log_w = np.concatenate([np.log(mix.w), [np.log(mu_b)]])
-        log_qd_b = np.log1p(cfg.detection.p_d0 * np.expm1(
-            cfg.birth.rate_shape * (np.log(cfg.birth.rate_shape / cfg.birth.expected_rate)
-                                    - np.log1p(cfg.birth.rate_shape / cfg.birth.expected_rate))))
-        log_qd = np.concatenate([log_miss_factor(mix, p_d, rate_scale), [log_qd_b]])
+        log_qd = np.concatenate([log_miss_factor(mix, p_d, rate_scale),
+                                 [_birth_log_miss_factor(cfg)]])
     cell_log_c = -stats.n * np.log(area)
     if mc.mode == 'cphd':
         k_most = max((len(p) for p in pset.partitions), default=0)
@@ -381,16 +378,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         for i in range(n_comp):
             vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
 
-    # nothing tracked here is that large: such components are walls and clutter lines
-    too_big = posterior.expected_extent()
-    tr = too_big[:, 0, 0] + too_big[:, 1, 1]
-    det_ = too_big[:, 0, 0] * too_big[:, 1, 1] - too_big[:, 0, 1] ** 2
-    major2 = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det_, 0.0))
-    # and a component that coasted until its position is unknown within metres would only
-    # claim far-away returns: it has no information left
-    pos_var = np.maximum(posterior.P[:, 0, 0], posterior.P[:, 1, 1])
-    oversized = (major2 > cfg.reduction.max_semi_axis ** 2) | \
-        (pos_var > cfg.reduction.max_position_std ** 2)
+    oversized = _implausible(posterior, cfg)
     diag.oversized = int(oversized.sum())
     posterior = posterior.take(~oversized)
     reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
@@ -428,6 +416,36 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
             travel[j] = max(travel[j], old.reported_travel[i])
     return replace(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
                    reported_travel=travel, reported_age=age)
+
+
+def _pad(a, n: int, fill: float):
+    """``a`` with ``n`` rows of ``fill`` appended (None stays None)."""
+    if a is None:
+        return None
+    return np.concatenate([a, np.full((n,) + a.shape[1:], fill)])
+
+
+def _birth_log_miss_factor(cfg: TrackerConfig) -> float:
+    """``log q_D`` of the birth intensity: ``1 - p_D0 (1 - (beta/(beta+1))^alpha)``."""
+    alpha = cfg.birth.rate_shape
+    beta = alpha / cfg.birth.expected_rate
+    log_e0 = alpha * (np.log(beta) - np.log1p(beta))
+    return float(np.log1p(cfg.detection.p_d0 * np.expm1(log_e0)))
+
+
+def _implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
+    """
+    Components to drop: larger than any object tracked here (walls, clutter lines), or
+    coasted until their position is unknown within metres (they could only claim
+    far-away returns).
+    """
+    X = mix.expected_extent()
+    tr = X[:, 0, 0] + X[:, 1, 1]
+    det = X[:, 0, 0] * X[:, 1, 1] - X[:, 0, 1] ** 2
+    major2 = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+    pos_var = np.maximum(mix.P[:, 0, 0], mix.P[:, 1, 1])
+    return ((major2 > cfg.reduction.max_semi_axis ** 2)
+            | (pos_var > cfg.reduction.max_position_std ** 2))
 
 
 def gate_threshold(cfg: TrackerConfig) -> float:
