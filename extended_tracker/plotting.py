@@ -17,13 +17,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Ellipse, Polygon, Wedge  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .messages import id_rgba  # noqa: E402
+
 
 def id_colour(label: int):
-    """A stable colour per id (golden-ratio hue walk), as RGB in 0..1."""
-    import colorsys
-
-    h = (int(label) * 0.618033988749895) % 1.0
-    return colorsys.hsv_to_rgb(h, 0.75, 0.9)
+    """The id's colour as RGB in 0..1: the same as its RViz markers."""
+    c = id_rgba(label)
+    return c['r'], c['g'], c['b']
 
 
 def _outline(ax, m, X, colour, rectangle=False, lw=1.5, alpha=1.0):
