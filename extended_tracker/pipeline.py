@@ -50,7 +50,6 @@ class PipelineState:
     last_stamp_ns: int | None = None
     frame_id: str | None = None
     last_estimates: Estimates = field(default_factory=Estimates.empty)
-    last_log_card: np.ndarray | None = None
     scans: int = 0
     elapsed: float = 0.0
 
@@ -108,16 +107,13 @@ def _diag_template():
     return d
 
 
-def _card_of(state: PipelineState, cfg: TrackerConfig):
-    log_card = state.last_log_card
-    if log_card is None:
-        log_card = state.filter.log_card
-    card = np.exp(log_card)
+def _card_of(state: PipelineState):
+    card = np.exp(state.filter.log_card)
     return card, float(np.sum(np.arange(len(card)) * card))
 
 
-def _repeat(state, scan_stamp, frame, event, error, t0, cfg, diag=None):
-    card, mean = _card_of(state, cfg)
+def _repeat(state, scan_stamp, frame, event, error, t0, diag=None):
+    card, mean = _card_of(state)
     return StepResult(scan_stamp, frame, state.last_estimates, card, mean, np.zeros((0, 2)),
                       np.zeros((0, 2)), diag or _diag_template(), event, error,
                       time.perf_counter() - t0)
@@ -144,26 +140,26 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         frame = frame_of(scan)
     except (AttributeError, TypeError, ValueError) as err:
         return state, _repeat(state, state.last_stamp_ns or 0, state.frame_id or '',
-                              'malformed_scan', f'unreadable header: {err}', t0, cfg)
+                              'malformed_scan', f'unreadable header: {err}', t0)
     try:
         sp = scan_to_points(scan, cfg.scan.min_range, cfg.scan.max_range,
                             cfg.scan.range_max_inclusive)
     except ScanError as err:
-        return state, _repeat(state, now, frame, 'malformed_scan', str(err), t0, cfg)
+        return state, _repeat(state, now, frame, 'malformed_scan', str(err), t0)
 
     if state.frame_id is not None and frame != state.frame_id:
         # The tracker is locked to the first scan's frame: tracks in another frame are not
         # comparable. The scan is not used; the previous estimates stand (in their frame).
         return state, _repeat(state, now, state.frame_id, 'foreign_frame',
                               f'frame {frame!r} is not the tracked frame {state.frame_id!r}',
-                              t0, cfg)
+                              t0)
     event = None
     filt = state.filter
     background = state.background
     if state.last_stamp_ns is None:
         dt = cfg.timing.default_dt
     elif now == state.last_stamp_ns:
-        return state, _repeat(state, now, frame, 'repeated_stamp', None, t0, cfg)
+        return state, _repeat(state, now, frame, 'repeated_stamp', None, t0)
     elif now < state.last_stamp_ns:
         event = 'time_backwards'
         filt = _reset(filt, cfg)
@@ -227,8 +223,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         diag[k] = getattr(fdiag, k)
     card = np.exp(new_filter.log_card)
     new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,
-                        frame_id=frame, last_estimates=estimates,
-                        last_log_card=new_filter.log_card, scans=state.scans + 1,
+                        frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
                         elapsed=state.elapsed + dt)
     result = StepResult(now, frame, estimates, card, float(np.sum(np.arange(len(card)) * card)),
                         points, bg_points, diag, event, None, 0.0)
@@ -236,12 +231,4 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     return new_state, result
 
 
-def run_scans(scans, cfg: TrackerConfig, state: PipelineState | None = None):
-    """Run :func:`step` over an iterable of scans; yield each result."""
-    state = state or PipelineState.initial(cfg)
-    for scan in scans:
-        state, result = step(state, scan, cfg)
-        yield result
-
-
-__all__ = ['PipelineState', 'StepResult', 'step', 'run_scans', 'EVENTS', 'ScanPoints']
+__all__ = ['PipelineState', 'StepResult', 'step', 'EVENTS', 'ScanPoints']

@@ -171,3 +171,22 @@ def test_vectorised_object_count_matches_scalar(ns, rate):
 
     got = expected_object_counts(np.array(ns), np.full(len(ns), rate), 4)
     assert got.tolist() == [expected_object_count(n, rate, 4) for n in ns]
+
+
+@given(st.lists(mixtures(max_k=4), min_size=1, max_size=4))
+def test_batched_merge_equals_per_group_reference(groups_of):
+    """merge_groups (one vectorised Newton solve) == merge_gamma / merge_iw per group."""
+    from extended_tracker.reduction import merge_gamma, merge_groups, merge_iw
+
+    mix = Mixture.concat(groups_of)
+    sizes = np.cumsum([0] + [len(g) for g in groups_of])
+    groups = [np.arange(a, b) for a, b in zip(sizes[:-1], sizes[1:])]
+    out = merge_groups(mix, groups)
+    for k, idx in enumerate(groups):
+        a, b = merge_gamma(mix.w[idx], mix.alpha[idx], mix.beta[idx])
+        v, V = merge_iw(mix.w[idx], mix.v[idx], mix.V[idx])
+        # both solve the same scalar equations by Newton to ~1e-10 relative
+        assert np.isclose(out.alpha[k], a, rtol=1e-7) and np.isclose(out.beta[k], b, rtol=1e-7)
+        assert np.isclose(out.v[k], v, rtol=1e-7)
+        np.testing.assert_allclose(out.V[k], V, rtol=1e-7, atol=1e-12)
+        assert np.isclose(out.w[k], mix.w[idx].sum(), rtol=1e-12)
