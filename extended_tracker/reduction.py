@@ -102,7 +102,9 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     Weights add; the Gaussian is moment matched; the Gamma matches ``E[gamma]`` and
     ``E[log gamma]``; the inverse Wishart matches ``E[X^-1]`` and ``E[log|X|]`` (see
     :func:`merge_gamma` and :func:`merge_iw`, the same equations stated per group: they
-    are the reference a test holds this batched solve to); the label is the heaviest member's. Newton runs vectorised over groups.
+    are the reference a test holds this batched solve to); the label is the heaviest
+    member's. Newton runs vectorised over groups.
+
     """
     g = len(groups)
     sizes = np.array([len(x) for x in groups])
