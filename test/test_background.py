@@ -22,7 +22,8 @@ def test_walls_and_furniture_yield_no_tracks_and_a_stopped_person_stays_tracked(
     cfg = from_dict({})
     hist = run(walls_scene(), 20.0, cfg)
     # After the learning period (confirm_time 1 s, then the static tracks die out; all gone
-    # by 5 s): nothing but the person. The person walks in at t = 1 s, stands still from 4 s to 14 s.
+    # by 5 s): nothing but the person. The person walks in at t = 1 s and stands still from
+    # 4 s to 14 s.
     labels_on_person = []
     for k, (truth, res) in enumerate(hist):
         if k < 50:

@@ -89,7 +89,8 @@ def test_monte_carlo_gap_shrinks_with_v():
         logp = -g + len(pts) * np.log(g)
         for z in pts:
             e = z - x[:, :2]
-            q = inv[:, 0] * e[:, 0] ** 2 + 2 * inv[:, 1] * e[:, 0] * e[:, 1] + inv[:, 3] * e[:, 1] ** 2
+            q = (inv[:, 0] * e[:, 0] ** 2 + 2 * inv[:, 1] * e[:, 0] * e[:, 1]
+                 + inv[:, 3] * e[:, 1] ** 2)
             logp += -np.log(2 * np.pi) - 0.5 * np.log(det) - 0.5 * q
         mc = logsumexp(logp) - np.log(k)
         gaps[v] = formula - mc

@@ -26,7 +26,8 @@ class PointObject:
     t_end: float = np.inf
 
     def centre(self, t: float) -> np.ndarray:
-        return np.asarray(self.start, float) + np.asarray(self.velocity, float) * (t - self.t_start)
+        start = np.asarray(self.start, float)
+        return start + np.asarray(self.velocity, float) * (t - self.t_start)
 
     def alive(self, t: float) -> bool:
         return self.t_start <= t <= self.t_end
