@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammaln
 
-from .logmath import logsumexp, lse1, lse_rows
+from .logmath import logsumexp, lse1, lse_last, lse_rows
 
 NEG_INF = -np.inf
 
@@ -52,49 +52,6 @@ class UpdateWeights:
     log_w_detected: np.ndarray
     log_card: np.ndarray
     log_partition_weight: np.ndarray
-
-
-def log_esf(log_a: np.ndarray) -> np.ndarray:
-    """
-    Log elementary symmetric functions ``log e_r(a)``, ``r = 0..len(a)``.
-
-    Notes
-    -----
-    Recursion ``e_r <- e_r + a_t e_{r-1}`` over ``t``, each step a ``logaddexp``; stable for
-    values spanning hundreds of orders of magnitude.
-
-    """
-    k = len(log_a)
-    e = np.full(k + 1, NEG_INF)
-    e[0] = 0.0
-    if k == 1:
-        e[1] = log_a[0]
-        return e
-    for t in range(k):
-        e[1:t + 2] = np.logaddexp(e[1:t + 2], e[0:t + 1] + log_a[t])
-    return e
-
-
-def log_esf_leave_one_out(log_a: np.ndarray) -> np.ndarray:
-    """
-    ``log e_r(a without a_j)`` for every ``j``: array of shape (k, k), ``r = 0..k-1``.
-
-    Notes
-    -----
-    The recursion of :func:`log_esf` run for all ``j`` at once, element ``j`` masked in
-    row ``j``; no division, so no cancellation.
-
-    """
-    k = len(log_a)
-    if k == 1:
-        return np.zeros((1, 1))
-    e = np.full((k, k + 1), NEG_INF)
-    e[:, 0] = 0.0
-    masked = np.broadcast_to(log_a, (k, k)).copy()
-    np.fill_diagonal(masked, NEG_INF)
-    for t in range(k):
-        e[:, 1:t + 2] = np.logaddexp(e[:, 1:t + 2], e[:, 0:t + 1] + masked[:, t:t + 1])
-    return e[:, :k]
 
 
 def poisson_log_pmf(mean: float, n_max: int) -> np.ndarray:
@@ -140,33 +97,73 @@ def _log_lambda_table(log_q0: float, n_max: int, j_max: int) -> np.ndarray:
     return falling + nj * log_q0
 
 
-def _partition_with_singletons(cells, cell_size, log_a, log_A, T, W1, log_pc_fact, lam_P,
-                               u0_terms, log_u_cell, p_idx):
-    """Lambda_P, its Upsilon_0 term and the per-cell Upsilon of one partition (in place)."""
-    single = cell_size[cells] == 1
-    s_cells = cells[single]
-    ns_cells = cells[~single]
-    k1, k2 = len(s_cells), len(ns_cells)
-    s_a = log_a[s_cells]
-    active = np.isfinite(s_a)
-    s_act = s_cells[active]
-    ka = len(s_act)
-    e = log_esf(s_a[active])                          # e_r, r = 0..ka
-    r = np.arange(ka + 1)
-    pc_r = log_pc_fact[k1 - r] + e
-    lam_P[p_idx] = log_A + lse_rows(T[:, k2 + r] + pc_r[None, :])
-    u0_terms[p_idx] = log_A + lse1(W1[k2 + r] + pc_r)
-    if k2:
-        # Lambda_{P minus W}, W non-singleton: A_P / a_W and one non-singleton fewer
-        u_ns = lse1(W1[k2 - 1 + r] + pc_r)
-        log_u_cell[ns_cells] = np.logaddexp(log_u_cell[ns_cells],
-                                            log_A - log_a[ns_cells] + u_ns)
-    # W an active singleton: one singleton fewer, leave-one-out symmetric functions
-    e_loo = log_esf_leave_one_out(s_a[active])        # (ka, ka), r = 0..ka-1
-    r2 = np.arange(ka)
-    B = W1[k2 + r2] + log_pc_fact[k1 - 1 - r2]
-    u_s = log_A + lse_rows(e_loo + B[None, :])
-    log_u_cell[s_act] = np.logaddexp(log_u_cell[s_act], u_s)
+def log_esf_prefixes(log_a: np.ndarray) -> np.ndarray:
+    """
+    Log elementary symmetric functions of every prefix of every row.
+
+    Parameters
+    ----------
+    log_a : (p, k) array
+        Rows of log-values; ``-inf`` entries (padding) change nothing.
+
+    Returns
+    -------
+    (k + 1, p, k + 1) array
+        ``out[t, i, r] = log e_r(a_i0 .. a_i(t-1))``.
+
+    Notes
+    -----
+    Recursion ``e_r <- e_r + a_t e_{r-1}`` over ``t``, each step a ``logaddexp`` on all rows
+    at once; stable for values spanning hundreds of orders of magnitude.
+
+    """
+    p, k = log_a.shape
+    pre = np.full((k + 1, p, k + 1), NEG_INF)
+    pre[:, :, 0] = 0.0
+    for t in range(k):
+        pre[t + 1, :, 1:] = np.logaddexp(pre[t, :, 1:], pre[t, :, :-1] + log_a[:, t:t + 1])
+    return pre
+
+
+def leave_one_out_sums(pre: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) -> np.ndarray:
+    """
+    ``log sum_r e_r(a_i without a_ij) b_ir`` for every row ``i`` and element ``j``.
+
+    Parameters
+    ----------
+    pre : (k + 1, p, k + 1) array
+        :func:`log_esf_prefixes` of ``log_a``.
+    log_a : (p, k) array
+    log_b : (p, k) array
+        Log-coefficients ``b_ir``, ``r = 0..k-1``.
+
+    Returns
+    -------
+    (p, k) array
+
+    Notes
+    -----
+    ``e(a without a_j)`` is the product of the polynomials of the prefix before ``j`` and
+    the suffix after it, so the sum is ``sum_i pre_j[i] G_j[i]`` with
+    ``G_j[i] = sum_s e_s(suffix after j) b_{i+s}``. Absorbing ``a_j`` into the suffix gives
+    ``G_{j-1}[i] = G_j[i] + a_j G_j[i+1]``: O(k) per element, O(k^2) in all, every term
+    positive (no division, so no cancellation), against O(k^3) for masking each element
+    in turn.
+
+    """
+    p, k = log_a.shape
+    g = np.full((k + 1, p, k + 1), NEG_INF)          # g[j] = G_j, padded by one column
+    g[k, :, :k] = log_b
+    for j in range(k - 1, 0, -1):
+        g[j, :, :k] = np.logaddexp(g[j + 1, :, :k], log_a[:, j:j + 1] + g[j + 1, :, 1:])
+    # element j pairs the prefix before it with the suffix after it
+    return lse_last(pre[:k, :, :k] + g[1:, :, :k]).T
+
+
+def _gather(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``table[idx]`` with out-of-range indices giving ``-inf``."""
+    ok = (idx >= 0) & (idx < len(table))
+    return np.where(ok, table[np.clip(idx, 0, len(table) - 1)], NEG_INF)
 
 
 def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_card,
@@ -248,21 +245,37 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         # A non-singleton cell no object explains makes the partition impossible (clutter
         # is singletons only): it contributes nothing.
         feasible = np.isfinite(log_A)
-        # Partitions without active singletons: e = [1], everything in closed form.
-        easy = feasible & (n_active == 0)
-        if np.any(easy):
-            ep = np.flatnonzero(easy)
-            lam_P[ep] = log_A[ep, None] + T[:, k2[ep]].T + log_pc_fact[k1[ep], None]
-            u0_terms[ep] = log_A[ep] + W1[k2[ep]] + log_pc_fact[k1[ep]]
-            rows = easy[pid] & ~single
-            if np.any(rows):
-                pr = pid[rows]
-                vals = log_A[pr] - la[rows] + W1[k2[pr] - 1] + log_pc_fact[k1[pr]]
-                np.logaddexp.at(log_u_cell, flat[rows], vals)
-        for p_idx in np.flatnonzero(feasible & ~easy):
-            self_cells = np.asarray(partitions[p_idx])
-            _partition_with_singletons(self_cells, cell_size, log_a, float(log_A[p_idx]),
-                                       T, W1, log_pc_fact, lam_P, u0_terms, log_u_cell, p_idx)
+        # The active singletons (those some object may have produced) of each feasible
+        # partition, packed into rows padded with -inf: every partition at once.
+        act = single & np.isfinite(la) & feasible[pid]
+        ka = np.where(feasible, n_active, 0)
+        R = int(ka.max())
+        slot = np.cumsum(act) - 1
+        slot -= np.concatenate([[0], np.cumsum(ka)[:-1]])[pid]
+        S = np.full((n_part, R), NEG_INF)
+        S[pid[act], slot[act]] = la[act]
+        pre = log_esf_prefixes(S)                       # e_r of the first t singletons
+        r = np.arange(R + 1)
+        # pc_r = (k1 - r)! p_c(k1 - r) e_r(a_S)
+        pc_r = _gather(log_pc_fact, k1[:, None] - r[None, :]) + pre[R]
+        pc_r[~feasible] = NEG_INF
+        col = np.minimum(k2[:, None] + r[None, :], k_most)
+        lam_P[:] = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
+        u0_terms[:] = log_A + lse_rows(W1[col] + pc_r)
+        # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
+        rows = feasible[pid] & ~single
+        if np.any(rows):
+            u_ns = lse_rows(_gather(W1, k2[:, None] - 1 + r[None, :]) + pc_r)
+            pr = pid[rows]
+            np.logaddexp.at(log_u_cell, flat[rows], log_A[pr] - la[rows] + u_ns[pr])
+        # W an active singleton: one singleton fewer, e_r of the others (leave one out)
+        if R:
+            r2 = r[:-1]
+            B = (_gather(W1, k2[:, None] + r2[None, :])
+                 + _gather(log_pc_fact, k1[:, None] - 1 - r2[None, :]))
+            B[r2[None, :] >= ka[:, None]] = NEG_INF
+            u_s = log_A[:, None] + leave_one_out_sums(pre, S, B)
+            np.logaddexp.at(log_u_cell, flat[act], u_s[pid[act], slot[act]])
 
     per_partition = lse_rows(lam_P + log_card[None, :])
     log_L = lse1(per_partition)

@@ -13,7 +13,7 @@ from itertools import product
 
 import numpy as np
 import pytest
-from scipy.special import gammaln, logsumexp
+from scipy.special import gammaln
 
 from extended_tracker.cphd import cphd_update, phd_update, poisson_log_pmf
 
@@ -33,12 +33,14 @@ def set_partitions(items):
         yield [[first]] + part
 
 
-def make_world(seed, n_states=3):
+def make_world(seed, n_states=3, dead=None):
     rng = np.random.default_rng(seed)
     s = rng.dirichlet(np.ones(n_states))               # state distribution of one object
     p_d = rng.uniform(0.5, 0.95, n_states)
     gamma = rng.uniform(0.5, 3.0, n_states)            # Poisson rate of detections
     phi = rng.uniform(0.05, 2.0, (n_states, M))        # density of detection k under state l
+    if dead is not None:
+        phi[:, dead] = 0.0                             # no object can produce detection `dead`
     c = rng.uniform(0.1, 1.0, M)                       # clutter spatial density at each point
     # f(W | l): Poisson set density times p_D; f(empty | l) = q_D
     f = np.zeros((n_states, ALL + 1))
@@ -83,7 +85,9 @@ def brute_force(card, s, f, c, clutter_pmf):
         post_card[n] += base.sum()
         for i in range(n):
             mk = objs[:, i]
-            share = base[:, None] * s[None, :] * f[:, mk].T / h[mk][:, None]
+            # where h = 0 the assignment has base 0: its share is 0, not 0/0
+            share = base[:, None] * s[None, :] * f[:, mk].T / np.where(h[mk] > 0, h[mk],
+                                                                      1.0)[:, None]
             np.add.at(detected.T, mk, share)
     missed = detected[:, 0].copy()
     detected[:, 0] = 0.0
@@ -125,7 +129,8 @@ def filter_inputs(card, s, f, c):
     log_w = np.log(nbar * s)
     masks = list(range(1, ALL + 1))
     col = {mk: i for i, mk in enumerate(masks)}
-    log_g = np.log(f[:, masks])
+    with np.errstate(divide='ignore'):                 # gated-out cells are -inf
+        log_g = np.log(f[:, masks])
     log_qd = np.log(f[:, 0])
     size = np.array([bin(mk).count('1') for mk in masks])
     cell_log_c = np.array([np.sum(np.log(c[[k for k in range(M) if mk >> k & 1]]))
@@ -151,8 +156,13 @@ def test_factorised_oracle_matches_full_enumeration(seed):
 
 @pytest.mark.parametrize('seed', [0, 1, 2, 3])
 @pytest.mark.parametrize('clutter', ['poisson', 'general'])
-def test_cphd_equals_brute_force(seed, clutter):
-    s, f, c = make_world(seed)
+@pytest.mark.parametrize('dead', [None, 2])
+def test_cphd_equals_brute_force(seed, clutter, dead):
+    """
+    Every partition of four detections; with ``dead``, one detection only clutter explains
+    (an inactive singleton, and partitions whose non-singleton cells hold it are infeasible).
+    """
+    s, f, c = make_world(seed, dead=dead)
     rng = np.random.default_rng(100 + seed)
     card = rng.dirichlet(np.ones(5))                   # arbitrary, N_max = 4
     if clutter == 'poisson':
@@ -218,18 +228,35 @@ def test_log_domain_survives_extreme_scales():
     assert np.all(np.isfinite(out.log_w_missed))
 
 
-def test_log_esf_against_direct_products():
+def test_leave_one_out_sums_against_direct_products():
+    """Batched prefix ESFs and leave-one-out sums, rows padded with -inf, by enumeration."""
     from itertools import combinations
 
-    from extended_tracker.cphd import log_esf, log_esf_leave_one_out
+    from extended_tracker.cphd import leave_one_out_sums, log_esf_prefixes
 
-    a = np.array([0.5, 2.0, 3.0, 0.1, 7.0])
-    e = np.exp(log_esf(np.log(a)))
-    for r in range(len(a) + 1):
-        direct = sum(np.prod(cmb) for cmb in combinations(a, r))
-        assert e[r] == pytest.approx(direct, rel=1e-12)
-    loo = np.exp(log_esf_leave_one_out(np.log(a)))
-    for j in range(len(a)):
-        np.testing.assert_allclose(loo[j], np.exp(log_esf(np.log(np.delete(a, j)))),
-                                   rtol=1e-12)
-    assert logsumexp([0.0]) == 0.0
+    rng = np.random.default_rng(3)
+    k = 6
+    rows = [rng.uniform(0.05, 5.0, k), rng.uniform(0.05, 5.0, 3), np.exp([-400.0, 300.0])]
+    log_a = np.full((len(rows), k), -np.inf)
+    for i, a in enumerate(rows):
+        log_a[i, :len(a)] = np.log(a)
+    log_b = np.log(rng.uniform(0.1, 3.0, (len(rows), k)))
+    pre = log_esf_prefixes(log_a)
+    out = leave_one_out_sums(pre, log_a, log_b)
+    for i, a in enumerate(rows):
+        e_full = [sum(np.prod(cmb) for cmb in combinations(a, r)) for r in range(len(a) + 1)]
+        # rtol: sums of at most 20 positive products in double precision
+        np.testing.assert_allclose(np.exp(pre[len(a), i, :len(a) + 1]), e_full, rtol=1e-12)
+        assert np.all(pre[len(a), i, len(a) + 1:] == -np.inf)
+        for j in range(len(a)):
+            rest = np.delete(a, j)
+            ref = sum(np.exp(log_b[i, r]) * sum(np.prod(cmb) for cmb in combinations(rest, r))
+                      for r in range(len(rest) + 1))
+            if i == 2:                                 # 1e-174 and 1e130: compare logs
+                assert out[i, j] == pytest.approx(np.log(ref), rel=1e-12)
+            else:
+                assert np.exp(out[i, j]) == pytest.approx(ref, rel=1e-12)
+        # leaving out a padding element (a zero) leaves the whole row
+        if len(a) < k:
+            full = np.log(sum(np.exp(log_b[i, r]) * e_full[r] for r in range(len(a) + 1)))
+            np.testing.assert_allclose(out[i, len(a):], full, rtol=1e-12)
