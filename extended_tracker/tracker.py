@@ -366,7 +366,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                        upd.v[sel], upd.V[sel], mix.label[comp[sel]])
     w_birth = np.exp(out.log_w_detected[n_comp, :])
     bsel = np.flatnonzero(w_birth >= cfg.birth.min_weight)
-    born, next_label = _label_births(pset, bsel, state.next_label)
+    born, next_label = _label_births(pset, bsel, state.next_label,
+                                     *_cell_claims(mix.label[comp], cell, w_det, n_cells),
+                                     w_birth)
     births = Mixture(w_birth[bsel], bupd.alpha[bsel], bupd.beta[bsel], bupd.m[bsel],
                      bupd.P[bsel], bupd.v[bsel], bupd.V[bsel], born)
     diag.births = len(np.unique(born))
@@ -454,17 +456,46 @@ def gate_threshold(cfg: TrackerConfig) -> float:
     return float(-2.0 * np.log1p(-cfg.partition.gate_probability))
 
 
-def _label_births(pset, birth_cells, next_label):
+def _cell_claims(pair_label, pair_cell, w_det, n_cells):
+    """
+    The label with the most detected weight on each cell, and that weight (0 if none).
+    """
+    claim = np.zeros(n_cells, dtype=np.int64)
+    weight = np.zeros(n_cells)
+    if not len(pair_cell):
+        return claim, weight
+    labels, inv = np.unique(pair_label, return_inverse=True)
+    per = np.zeros((len(labels), n_cells))
+    np.add.at(per, (inv, pair_cell), w_det)
+    best = np.argmax(per, axis=0)
+    return labels[best], per[best, np.arange(n_cells)]
+
+
+def _label_births(pset, birth_cells, next_label, claim=None, claim_weight=None,
+                  birth_weight=None):
     """
     Labels of new components: cells that share detections get one label.
 
     Overlapping cells (a cell and its sub-cells from other partitions) are alternative
     explanations of the same returns, so their birth hypotheses are one new object and
     merge; cells with no detection in common are different objects.
+
+    A birth on a cell that an existing label explains with more weight than the birth is
+    an alternative hypothesis of that object (a restart at zero velocity), not a new
+    object: it takes that label. Otherwise a second label would follow the object and
+    take it over whenever its fresh extent fits a scan better, a new id each time.
     """
     k = len(birth_cells)
     if not k:
         return np.zeros(0, dtype=np.int64), next_label
+    out = np.zeros(k, dtype=np.int64)
+    if claim is not None:
+        claimed = claim_weight[birth_cells] > birth_weight[birth_cells]
+        out[claimed] = claim[birth_cells[claimed]]
+        free = np.flatnonzero(~claimed)
+        if len(free) < k:
+            out[free], next_label = _label_births(pset, birth_cells[free], next_label)
+            return out, next_label
     parent = list(range(k))
 
     def root(i):
@@ -514,6 +545,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     keep = np.ones(len(mix), dtype=bool)
     order = np.argsort(-mix.w, kind='stable')
     head = {}
+    spread = mix.P[:, :2, :2] + mix.expected_extent()
     for i in order:
         lab = int(label[i])
         j = head.get(lab)
@@ -521,7 +553,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
             head[lab] = i
             continue
         e = mix.m[i, :2] - mix.m[j, :2]
-        d2 = float(e @ inv2(mix.P[j, :2, :2]) @ e)
+        d2 = float(e @ inv2(spread[j]) @ e)
         if d2 <= merge_distance:
             continue
         if mix.w[i] >= split_weight:
