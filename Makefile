@@ -37,6 +37,7 @@ results: setup
 
 config: setup
 	$(PY) -m extended_tracker.configio > config/tracker.yaml
+	$(PY) -m extended_tracker.configio leg_height > config/leg_height.yaml
 
 clean:
 	rm -rf build out .pytest_cache .hypothesis

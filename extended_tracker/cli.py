@@ -1,9 +1,10 @@
 """
 ``extended-tracker``: the user command line.
 
-    extended-tracker replay INPUT --output OUTPUT [--scan-topic T] [--config YAML] [--plot PNG]
+    extended-tracker replay INPUT --output OUTPUT [--scan-topic T] [--config YAML | --preset P]
+                            [--plot PNG]
     extended-tracker simulate OUTPUT [--scene NAME] [--seed N] [--duration S]
-    extended-tracker real [--data DIR] [--out DIR]
+    extended-tracker real [--data DIR] [--out DIR] [--config YAML]
     extended-tracker evaluate OUTPUT_BAG --truth TRUTH [--plot PNG]
     extended-tracker results [--readme README.md]
     extended-tracker bench [--quick] [--memory N]
@@ -19,7 +20,7 @@ import numpy as np
 from pathlib import Path
 import sys
 
-from .errors import ExtendedTrackerError
+from .errors import ConfigError, ExtendedTrackerError
 
 # bags in ../shared/data/real with more than one LaserScan topic: the one to replay
 REAL_TOPICS = {
@@ -29,9 +30,21 @@ REAL_TOPICS = {
 }
 
 
-def _config(path):
-    from .config import TrackerConfig
+# bags in ../shared/data/real recorded at leg height: replayed with the leg_height preset
+REAL_PRESETS = {
+    'legtracker_demo_stationary_simple_environment': 'leg_height',
+    'legtracker_positive_1': 'leg_height',
+    'mir_legs_test_stationary': 'leg_height',
+}
 
+
+def _config(path, preset_name=None):
+    from .config import preset, TrackerConfig
+
+    if path is not None and preset_name is not None:
+        raise ConfigError('give --config or --preset, not both')
+    if preset_name is not None:
+        return preset(preset_name)
     if path is None:
         return TrackerConfig()
     from .configio import load_yaml
@@ -42,7 +55,7 @@ def _config(path):
 def cmd_replay(args) -> int:
     from .replay import replay
 
-    cfg = _config(args.config)
+    cfg = _config(args.config, args.preset)
     summary = replay(args.input, args.output, cfg, args.scan_topic, args.plot,
                      progress=not args.quiet)
     for line in summary.lines():
@@ -73,20 +86,23 @@ def cmd_real(args) -> int:
         return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    cfg = _config(args.config)
+    given = _config(args.config) if args.config else None
     print(f'{"bag":48s} {"scans":>6s} {"det/scan":>8s} {"ids":>5s} {"moving":>6s} '
-          f'{"mean n":>6s} {"ms med":>7s} {"ms p99":>7s}')
+          f'{"mean n":>6s} {"ms med":>7s} {"ms p99":>7s}  config')
     for folder in sorted(p for p in data.iterdir() if p.is_dir()):
         target = out / f'{folder.name}_tracks'
         if target.exists():
             import shutil
 
             shutil.rmtree(target)
+        name = REAL_PRESETS.get(folder.name)
+        cfg = given or _config(None, name)
         s = replay(folder, target, cfg, REAL_TOPICS.get(folder.name),
                    out / f'{folder.name}.png', progress=False)
         print(f'{folder.name:48s} {s.scans:6d} {s.valid_detections / max(s.scans, 1):8.1f} '
               f'{s.distinct_ids:5d} {s.moving_ids:6d} {s.mean_count:6.2f} '
-              f'{s.median_ms:7.2f} {s.p99_ms:7.2f}')
+              f'{s.median_ms:7.2f} {s.p99_ms:7.2f}  '
+              f'{"--config" if given else (name or "defaults")}')
     print(f'bags and PNGs in {out}')
     return 0
 
@@ -135,6 +151,8 @@ def cmd_bench(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .config import PRESETS
+
     p = argparse.ArgumentParser(
         prog='extended-tracker',
         description='Extended object tracking in 2D laser scans: replay bags, simulate '
@@ -145,6 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument('--output', '-o', required=True, help='new ROS 2 bag folder (MCAP)')
     r.add_argument('--scan-topic', help='LaserScan topic when the bag has several')
     r.add_argument('--config', help='YAML config (plain sections or ros__parameters form)')
+    r.add_argument('--preset', choices=sorted(PRESETS),
+                   help='named changes from the defaults (leg_height: scanner at leg height)')
     r.add_argument('--plot', help='write a PNG of the run')
     r.add_argument('--quiet', action='store_true', help='no progress bar')
     r.set_defaults(func=cmd_replay)
@@ -157,7 +177,8 @@ def build_parser() -> argparse.ArgumentParser:
     real = sub.add_parser('real', help='replay every bag of a folder of real recordings')
     real.add_argument('--data', default=os.path.join('..', 'shared', 'data', 'real'))
     real.add_argument('--out', default=os.path.join('out', 'real'))
-    real.add_argument('--config')
+    real.add_argument('--config', help='one config for every bag (default: the defaults, '
+                                       'leg_height for the bags recorded at leg height)')
     real.set_defaults(func=cmd_real)
     e = sub.add_parser('evaluate', help='score a replayed bag against simulator truth')
     e.add_argument('output_bag')

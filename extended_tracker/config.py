@@ -322,3 +322,23 @@ def from_flat(flat: dict[str, Any]) -> TrackerConfig:
             raise ConfigError(f'parameter {name!r} is not of the form section.key')
         nested.setdefault(section, {})[key] = value
     return from_dict(nested)
+
+
+# Named sets of changes from the defaults, for installations the defaults do not fit.
+# ``config/<name>.yaml`` is generated from these (``make config``); a test keeps them equal.
+PRESETS: dict[str, dict] = {
+    # A scanner at leg height (~0.2-0.4 m) sees each walker as two leg clusters up to about
+    # 0.4 m apart. With d_min under that gap every distance partition offers the legs as two
+    # cells, and two tight leg tracks explain them better than one person: each walker
+    # became two ids. d_min 0.45 keeps a person's legs in one cell (sub-partitioning
+    # still splits a cell that predicted objects say holds two people). The legs' centroid
+    # jumps by a step length within a few scans: sigma_accel 5 lets the track follow.
+    'leg_height': {'partition': {'d_min': 0.45}, 'model': {'sigma_accel': 5.0}},
+}
+
+
+def preset(name: str) -> TrackerConfig:
+    """The defaults with the changes of preset ``name`` (see :data:`PRESETS`)."""
+    if name not in PRESETS:
+        raise ConfigError(f'unknown preset {name!r}; known: {sorted(PRESETS)}')
+    return from_dict(PRESETS[name])

@@ -75,7 +75,37 @@ def default_yaml() -> str:
     return YAML_HEADER + dump_ros_yaml(TrackerConfig())
 
 
+def preset_yaml(name: str) -> str:
+    """
+    The text of ``config/<name>.yaml``: the preset's changes only, as a ROS 2 parameters
+    file, each with its description and the default it replaces.
+    """
+    from dataclasses import fields
+
+    from .config import PRESETS, preset
+
+    cfg = preset(name)                                 # validates the preset
+    base = TrackerConfig()
+    lines = [
+        f'# extended_tracker preset {name!r}: changes from config/tracker.yaml, generated',
+        '# from PRESETS in extended_tracker/config.py (test/test_config.py keeps them equal).',
+        f'# ros2 run extended_tracker tracker_node --ros-args --params-file config/{name}.yaml',
+        f'# extended-tracker replay BAG -o OUT --preset {name}',
+        '/**:', '  ros__parameters:',
+    ]
+    for section, changes in PRESETS[name].items():
+        lines.append(f'    {section}:')
+        meta = {f.name: f.metadata for f in fields(getattr(base, section))}
+        for key in changes:
+            value = getattr(getattr(cfg, section), key)
+            old = getattr(getattr(base, section), key)
+            unit = f' {meta[key]["unit"]}' if meta[key].get('unit') else ''
+            lines.append(f'      {key}: {value!r}  # {meta[key]["description"]} '
+                         f'(default {old!r}{unit})')
+    return '\n'.join(lines) + '\n'
+
+
 if __name__ == '__main__':
     import sys
 
-    sys.stdout.write(default_yaml())
+    sys.stdout.write(preset_yaml(sys.argv[1]) if len(sys.argv) > 1 else default_yaml())

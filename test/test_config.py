@@ -1,5 +1,7 @@
 """The configuration tree: every leaf validated, with the bad value and range in the error."""
 
+from pathlib import Path
+
 import pytest
 
 from extended_tracker.config import from_dict, from_flat, iter_leaves, to_flat, TrackerConfig
@@ -52,3 +54,21 @@ def test_yaml_errors_are_config_errors(tmp_path):
     lst.write_text('- 1\n- 2\n')
     with pytest.raises(ConfigError, match='must be a mapping'):
         load_yaml(lst)
+
+
+def test_presets_and_their_yaml_files_agree():
+    """config/<preset>.yaml is generated from PRESETS and changes exactly those keys."""
+    from extended_tracker.config import PRESETS, preset
+    from extended_tracker.configio import preset_yaml
+
+    root = Path(__file__).resolve().parents[1]
+    defaults = to_flat(TrackerConfig())
+    for name, changes in PRESETS.items():
+        path = root / 'config' / f'{name}.yaml'
+        assert path.read_text() == preset_yaml(name), f'config/{name}.yaml is stale: make config'
+        cfg = preset(name)
+        assert load_yaml(path) == cfg
+        changed = {k for k, v in to_flat(cfg).items() if v != defaults[k]}
+        assert changed == {f'{sec}.{key}' for sec, kv in changes.items() for key in kv}
+    with pytest.raises(ConfigError, match='unknown preset'):
+        preset('nope')
