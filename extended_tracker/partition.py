@@ -49,7 +49,16 @@ class PartitionSet:
     _seen: set = field(default_factory=set)
 
     def add(self, labels: np.ndarray, max_partitions: int, max_cells: int) -> bool:
-        """Add the partition given by ``labels`` unless it is a duplicate or over a cap."""
+        """
+        Add the partition given by ``labels`` unless it is a duplicate or over a cap.
+
+        Once ``max_partitions`` are held, every further partition counts as capped without
+        being examined (a duplicate among them is counted too): under load the cap is
+        what bounds the time spent here.
+        """
+        if len(self.partitions) >= max_partitions:
+            self.capped_partitions += 1
+            return False
         order = np.argsort(labels, kind='stable')      # groups, each in ascending index
         bounds = np.flatnonzero(np.diff(labels[order])) + 1
         starts = np.concatenate([[0], bounds]).tolist()
@@ -66,9 +75,6 @@ class PartitionSet:
             ids.append(found)
         sig = tuple(sorted(i for i in ids if i >= 0)) + (len(new_cells),)
         if not new_cells and sig in self._seen:
-            return False
-        if len(self.partitions) >= max_partitions:
-            self.capped_partitions += 1
             return False
         if len(self.cells) + len(new_cells) > max_cells:
             self.capped_cells += len(new_cells)
@@ -372,6 +378,9 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     k_all = np.minimum(np.minimum(np.maximum(k_pred, k_rate), cfg.max_sub_objects),
                        counts[cand])
     for row in np.flatnonzero(k_all >= 2):
+        if len(pset.partitions) >= cfg.max_partitions:
+            pset.capped_partitions += 1               # no room: not worth a k-means
+            continue
         c = cand[row]
         k = int(k_all[row])
         idx = np.flatnonzero(base == labels[c])
