@@ -519,15 +519,17 @@ def _label_births(pset, birth_cells, next_label, claim=None, claim_weight=None,
 
 def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     """Size of each label's heaviest detected cell, where detection outweighs a miss."""
-    out = {}
     if not len(comp):
-        return out
-    lab_pairs = mix.label[comp]
-    for lab in np.unique(lab_pairs):
-        sel = lab_pairs == lab
-        if w_det[sel].sum() > w_missed[mix.label == lab].sum():
-            out[int(lab)] = int(stats.n[cell[sel][np.argmax(w_det[sel])]])
-    return out
+        return {}
+    labels, inv = np.unique(mix.label, return_inverse=True)
+    pair_lab = inv[comp]
+    detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
+    missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
+    order = np.lexsort((-w_det, pair_lab))            # heaviest pair first in each label
+    first = order[np.concatenate([[True], np.diff(pair_lab[order]) != 0])]
+    ok = detected[pair_lab[first]] > missed[pair_lab[first]]
+    first = first[ok]
+    return dict(zip(labels[pair_lab[first]].tolist(), stats.n[cell[first]].tolist()))
 
 
 def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next_label: int):
@@ -541,28 +543,23 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     """
     if not len(mix):
         return mix, next_label
-    label = mix.label.copy()
-    keep = np.ones(len(mix), dtype=bool)
-    order = np.argsort(-mix.w, kind='stable')
-    head = {}
+    order = np.lexsort((-mix.w, mix.label))           # each label's heaviest first
+    lab = mix.label[order]
+    is_head = np.concatenate([[True], lab[1:] != lab[:-1]])
+    head = order[np.flatnonzero(is_head)[np.cumsum(is_head) - 1]]
     spread = mix.P[:, :2, :2] + mix.expected_extent()
-    for i in order:
-        lab = int(label[i])
-        j = head.get(lab)
-        if j is None:
-            head[lab] = i
-            continue
-        e = mix.m[i, :2] - mix.m[j, :2]
-        d2 = float(e @ inv2(spread[j]) @ e)
-        if d2 <= merge_distance:
-            continue
-        if mix.w[i] >= split_weight:
-            label[i] = next_label
-            head[next_label] = i
-            next_label += 1
-        else:
-            keep[i] = False
-    return replace(mix, label=label).take(keep), next_label
+    e = mix.m[order, :2] - mix.m[head, :2]
+    d2 = np.einsum('ki,kij,kj->k', e, inv2(spread[head]), e)
+    far = np.zeros(len(mix), dtype=bool)
+    far[order] = (d2 > merge_distance) & ~is_head
+    heavy = far & (mix.w >= split_weight)
+    label = mix.label.copy()
+    # fresh labels in order of weight, as the objects they stand for are found
+    new = np.flatnonzero(heavy)
+    new = new[np.argsort(-mix.w[new], kind='stable')]
+    label[new] = next_label + np.arange(len(new))
+    keep = ~(far & ~heavy)
+    return replace(mix, label=label).take(keep), next_label + len(new)
 
 
 def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None) -> Estimates:
@@ -588,11 +585,11 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     chosen = np.sort(labels[chosen])
     if not len(chosen):
         return Estimates.empty()
-    best = []
-    for lab in chosen:
-        idx = np.flatnonzero(mix.label == lab)
-        best.append(idx[np.argmax(mix.w[idx])])
-    best = np.array(best)
+    order = np.lexsort((-mix.w, mix.label))           # each label's heaviest first
+    lab_sorted = mix.label[order]
+    first = np.concatenate([[True], lab_sorted[1:] != lab_sorted[:-1]])
+    heads = order[first]                               # one per label, labels ascending
+    best = heads[np.searchsorted(lab_sorted[first], chosen)]
     lab_w = weight[np.searchsorted(labels, chosen)]
     n_det = n_det or {}
     visibility = visibility or {}
