@@ -189,27 +189,27 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     order = np.lexsort((-mix.w, mix.label))
     lab_sorted = mix.label[order]
     first = np.concatenate([[True], lab_sorted[1:] != lab_sorted[:-1]])
-    head = order[first][np.cumsum(first) - 1]          # heaviest of each component's label
+    gid = np.cumsum(first) - 1                         # label group of each sorted member
+    n_groups = int(gid[-1]) + 1
+    head = order[first][gid]                           # heaviest of each member's label
     e = mix.m[order, :2] - mix.m[head, :2]
     Pi = inv2(mix.P[head, :2, :2])
     d2 = np.einsum('ki,kij,kj->k', e, Pi, e)
-    far_labels = np.unique(lab_sorted[d2 > merge_distance])
-    out = []
+    far_group = np.zeros(n_groups, dtype=bool)
+    far_group[gid[d2 > merge_distance]] = True
+    far_labels = lab_sorted[first][far_group]
+    size = np.bincount(gid, minlength=n_groups)
+    # members under 1 % of the head's weight move it by less than that: their weight is
+    # added to the head instead of a full moment match
+    heavy_member = ~first & (mix.w[order] >= ABSORB_RATIO * mix.w[head])
+    all_light = np.bincount(gid, weights=heavy_member, minlength=n_groups) == 0
     starts = np.flatnonzero(first)
-    bounds = np.append(starts, len(order))
-    absorbed = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        if lab_sorted[a] in far_labels:
-            continue
-        grp = order[a:b]
-        if len(grp) > 1:
-            # members under 1 % of the head's weight move it by less than that: their
-            # weight is added to the head instead of a full moment match
-            light = mix.w[grp[1:]] < ABSORB_RATIO * mix.w[grp[0]]
-            if np.all(light):
-                absorbed.append(grp)
-                continue
-        out.append(grp)
+    single = ~far_group & (size == 1)
+    absorb = ~far_group & (size > 1) & all_light
+    full = ~far_group & (size > 1) & ~all_light
+    singles = [order[starts[single]]]
+    multi = [order[starts[g]:starts[g] + size[g]] for g in np.flatnonzero(full).tolist()]
+    absorbed = [order[starts[g]:starts[g] + size[g]] for g in np.flatnonzero(absorb).tolist()]
     for lab in far_labels:
         idx = np.flatnonzero(mix.label == lab)
         remaining = idx[np.argsort(-mix.w[idx], kind='stable')]
@@ -218,13 +218,9 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
             e = mix.m[remaining, :2] - mix.m[j, :2]
             d2 = np.einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
             near = d2 <= merge_distance
-            out.append(remaining[near])
+            (multi if near.sum() > 1 else singles).append(remaining[near])
             remaining = remaining[~near]
-    singles = [grp for grp in out if len(grp) == 1]
-    multi = [grp for grp in out if len(grp) > 1]
-    parts = []
-    if singles:
-        parts.append(mix.take(np.concatenate(singles)))
+    parts = [mix.take(np.concatenate(singles))]
     if absorbed:
         heads = np.array([g[0] for g in absorbed])
         parts.append(mix.take(heads).with_weights(
