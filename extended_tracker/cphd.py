@@ -27,6 +27,9 @@ from scipy.special import gammaln
 from .logmath import logsumexp, lse1, lse_last, lse_rows
 
 NEG_INF = -np.inf
+# partitions are split into three batches by active singletons from these sizes on
+BATCH_MIN_PARTITIONS = 6
+BATCH_MIN_SINGLETONS = 12
 
 
 @dataclass(frozen=True)
@@ -166,6 +169,56 @@ def _gather(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return np.where(ok, table[np.clip(idx, 0, len(table) - 1)], NEG_INF)
 
 
+def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
+                     log_pc_fact, k_most):
+    """
+    ``Lambda_P(n)``, the ``Upsilon_0`` term and the per-cell ``Upsilon`` terms of a batch
+    of partitions, all at once.
+
+    ``pid``, ``flat``, ``single``, ``la`` describe the batch's (partition, cell) rows, grouped
+    by partition in order (``pid`` local to the batch); the other arrays are per partition.
+    Returns ``lam (p, N_max + 1)``, ``u0 (p,)`` and ``(cells, values)`` to add into the
+    cells' log-Upsilon.
+    """
+    n_part = len(k1)
+    # The active singletons (those some object may have produced) of each feasible
+    # partition, packed into rows padded with -inf.
+    act = single & np.isfinite(la) & feasible[pid]
+    R = int(ka.max()) if n_part else 0
+    slot = np.cumsum(act) - 1
+    slot -= np.concatenate([[0], np.cumsum(ka)[:-1]])[pid]
+    S = np.full((n_part, R), NEG_INF)
+    S[pid[act], slot[act]] = la[act]
+    pre = log_esf_prefixes(S)                           # e_r of the first t singletons
+    r = np.arange(R + 1)
+    # pc_r = (k1 - r)! p_c(k1 - r) e_r(a_S)
+    pc_r = _gather(log_pc_fact, k1[:, None] - r[None, :]) + pre[R]
+    pc_r[~feasible] = NEG_INF
+    col = np.minimum(k2[:, None] + r[None, :], k_most)
+    lam = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
+    u0 = log_A + lse_rows(W1[col] + pc_r)
+    cells, vals = [], []
+    # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
+    rows = feasible[pid] & ~single
+    if np.any(rows):
+        u_ns = lse_rows(_gather(W1, k2[:, None] - 1 + r[None, :]) + pc_r)
+        pr = pid[rows]
+        cells.append(flat[rows])
+        vals.append(log_A[pr] - la[rows] + u_ns[pr])
+    # W an active singleton: one singleton fewer, e_r of the others (leave one out)
+    if R:
+        r2 = r[:-1]
+        B = (_gather(W1, k2[:, None] + r2[None, :])
+             + _gather(log_pc_fact, k1[:, None] - 1 - r2[None, :]))
+        B[r2[None, :] >= ka[:, None]] = NEG_INF
+        u_s = log_A[:, None] + leave_one_out_sums(pre, S, B)
+        cells.append(flat[act])
+        vals.append(u_s[pid[act], slot[act]])
+    if not cells:
+        return lam, u0, np.zeros(0, dtype=np.int64), np.zeros(0)
+    return lam, u0, np.concatenate(cells), np.concatenate(vals)
+
+
 def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_card,
                 log_clutter_pmf) -> UpdateWeights:
     """
@@ -245,37 +298,21 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         # A non-singleton cell no object explains makes the partition impossible (clutter
         # is singletons only): it contributes nothing.
         feasible = np.isfinite(log_A)
-        # The active singletons (those some object may have produced) of each feasible
-        # partition, packed into rows padded with -inf: every partition at once.
-        act = single & np.isfinite(la) & feasible[pid]
         ka = np.where(feasible, n_active, 0)
-        R = int(ka.max())
-        slot = np.cumsum(act) - 1
-        slot -= np.concatenate([[0], np.cumsum(ka)[:-1]])[pid]
-        S = np.full((n_part, R), NEG_INF)
-        S[pid[act], slot[act]] = la[act]
-        pre = log_esf_prefixes(S)                       # e_r of the first t singletons
-        r = np.arange(R + 1)
-        # pc_r = (k1 - r)! p_c(k1 - r) e_r(a_S)
-        pc_r = _gather(log_pc_fact, k1[:, None] - r[None, :]) + pre[R]
-        pc_r[~feasible] = NEG_INF
-        col = np.minimum(k2[:, None] + r[None, :], k_most)
-        lam_P[:] = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
-        u0_terms[:] = log_A + lse_rows(W1[col] + pc_r)
-        # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
-        rows = feasible[pid] & ~single
-        if np.any(rows):
-            u_ns = lse_rows(_gather(W1, k2[:, None] - 1 + r[None, :]) + pc_r)
-            pr = pid[rows]
-            np.logaddexp.at(log_u_cell, flat[rows], log_A[pr] - la[rows] + u_ns[pr])
-        # W an active singleton: one singleton fewer, e_r of the others (leave one out)
-        if R:
-            r2 = r[:-1]
-            B = (_gather(W1, k2[:, None] + r2[None, :])
-                 + _gather(log_pc_fact, k1[:, None] - 1 - r2[None, :]))
-            B[r2[None, :] >= ka[:, None]] = NEG_INF
-            u_s = log_A[:, None] + leave_one_out_sums(pre, S, B)
-            np.logaddexp.at(log_u_cell, flat[act], u_s[pid[act], slot[act]])
+        # Partitions are batched by their number of active singletons (terciles when
+        # there are many): a batch costs its size times its largest count squared, so
+        # padding a 5-singleton partition to 55 would waste most of the work.
+        bucket = np.zeros(n_part, dtype=np.int64)
+        if n_part >= BATCH_MIN_PARTITIONS and ka.max() >= BATCH_MIN_SINGLETONS:
+            bucket = np.searchsorted(np.quantile(ka, [1 / 3, 2 / 3]), ka, side='left')
+        for b in np.unique(bucket).tolist():
+            sel = np.flatnonzero(bucket == b)
+            rows = bucket[pid] == b
+            lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
+                np.searchsorted(sel, pid[rows]), flat[rows], single[rows], la[rows],
+                k1[sel], k2[sel], ka[sel], log_A[sel], feasible[sel], T, W1, log_pc_fact,
+                k_most)
+            np.logaddexp.at(log_u_cell, cells, vals)
 
     per_partition = lse_rows(lam_P + log_card[None, :])
     log_L = lse1(per_partition)

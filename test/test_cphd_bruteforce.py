@@ -157,11 +157,18 @@ def test_factorised_oracle_matches_full_enumeration(seed):
 @pytest.mark.parametrize('seed', [0, 1, 2, 3])
 @pytest.mark.parametrize('clutter', ['poisson', 'general'])
 @pytest.mark.parametrize('dead', [None, 2])
-def test_cphd_equals_brute_force(seed, clutter, dead):
+@pytest.mark.parametrize('batched', [False, True])
+def test_cphd_equals_brute_force(seed, clutter, dead, batched, monkeypatch):
     """
     Every partition of four detections; with ``dead``, one detection only clutter explains
     (an inactive singleton, and partitions whose non-singleton cells hold it are infeasible).
+    ``batched`` splits the partitions into batches by singleton count, as large scans do.
     """
+    if batched:
+        import extended_tracker.cphd as cphd_module
+
+        monkeypatch.setattr(cphd_module, 'BATCH_MIN_PARTITIONS', 1)
+        monkeypatch.setattr(cphd_module, 'BATCH_MIN_SINGLETONS', 1)
     s, f, c = make_world(seed, dead=dead)
     rng = np.random.default_rng(100 + seed)
     card = rng.dirichlet(np.ones(5))                   # arbitrary, N_max = 4
