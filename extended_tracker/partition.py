@@ -260,10 +260,12 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
         if _ and np.array_equal(new, labels):
             break
         labels = new
-        for j in range(len(centres)):
-            sel = labels == j
-            if np.any(sel):
-                centres[j] = points[sel].mean(axis=0)
+        # each centre moves to the mean of its points; an empty cluster's centre stays
+        count = np.bincount(labels, minlength=len(centres))
+        sums = np.column_stack([np.bincount(labels, weights=points[:, 0], minlength=len(centres)),
+                                np.bincount(labels, weights=points[:, 1], minlength=len(centres))])
+        filled = count > 0
+        centres[filled] = sums[filled] / count[filled, None]
     return labels
 
 
