@@ -23,7 +23,7 @@ import numpy as np
 from ..ggiw import Mixture
 from .scan import ScanPoints
 
-GATHER_WIDTH = 64        # intervals up to this many beams are counted in one gather
+GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
 
 
 @dataclass(frozen=True)
@@ -78,11 +78,11 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     thr = r_near - margin
     blocked_n = np.zeros(k)
     free_sum = np.zeros(k)
-    # narrow intervals in one gather; the few wide ones (objects close to the scanner)
-    # one slice each, so the work is the total width, not components x widest
-    narrow = width <= GATHER_WIDTH
-    if np.any(narrow):
-        ni = np.flatnonzero(narrow)
+    # one padded gather per class of widths (up to 64 beams, then doubling), so the work
+    # stays within twice the total width and the calls are a handful, not one per object
+    cls = np.maximum(np.ceil(np.log2(np.maximum(width, 1) / GATHER_WIDTH)), 0).astype(int)
+    for c in np.unique(cls).tolist():
+        ni = np.flatnonzero(cls == c)
         w_max = int(width[ni].max())
         idx = lo[ni, None] + np.arange(w_max)[None, :]
         inside = idx < hi[ni, None]
@@ -90,11 +90,6 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         blocked = (rng[idx] < thr[ni, None]) & inside
         blocked_n[ni] = blocked.sum(axis=1)
         free_sum[ni] = np.where(inside & ~blocked, ang[idx], 0.0).sum(axis=1)
-    for i in np.flatnonzero(~narrow):
-        seg = rng[lo[i]:hi[i]]
-        b = seg < thr[i]
-        blocked_n[i] = b.sum()
-        free_sum[i] = ang[lo[i]:hi[i]][~b].sum()
     frac_visible = 1.0 - blocked_n / width
     n_free = width - blocked_n
     mean_free = np.where(n_free > 0, free_sum / np.maximum(n_free, 1), bearing)
