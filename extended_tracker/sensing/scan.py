@@ -10,6 +10,7 @@ messages and :class:`ScanData` all fit it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 import math
 
 import numpy as np
@@ -109,6 +110,17 @@ class ScanPoints:
         if len(self.angles) > 1:
             return abs(float(self.angles[1] - self.angles[0]))
         return 0.0
+
+    @cached_property
+    def sorted_beams(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """
+        ``(order, angles[order], median spacing)``: the beams by ascending angle, computed
+        once per scan for the p_D model's interval lookups.
+        """
+        order = np.argsort(self.angles, kind='stable')
+        ang = self.angles[order]
+        step = float(np.median(np.diff(ang))) if len(ang) > 1 else 0.0
+        return order, ang, step
 
 
 def _finite(name, value):

@@ -64,8 +64,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     k = len(bearing)
     if k == 0 or len(scan.angles) == 0:
         return np.zeros(k), bearing.copy()
-    order = np.argsort(scan.angles, kind='stable')
-    ang = scan.angles[order]
+    order, ang, step = scan.sorted_beams
     rng = beam_range[order]
     lo = np.searchsorted(ang, bearing - half_angle, side='left')
     hi = np.searchsorted(ang, bearing + half_angle, side='right')
@@ -94,7 +93,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     n_free = width - blocked_n
     mean_free = np.where(n_free > 0, free_sum / np.maximum(n_free, 1), bearing)
     # part of the interval outside the field of view is not seen at all
-    step = max(float(np.median(np.diff(ang))) if len(ang) > 1 else 0.0, 1e-9)
+    step = max(step, 1e-9)
     span = 2 * half_angle
     covered = np.clip(np.minimum(bearing + half_angle, scan.angle_hi + step / 2)
                       - np.maximum(bearing - half_angle, scan.angle_lo - step / 2), 0.0, None)
@@ -157,8 +156,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
 def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.5):
     """Visible fraction with shadows cast by the other confident components, beam by beam."""
     n = len(mix)
-    order = np.argsort(scan.angles, kind='stable')
-    ang_sorted = scan.angles[order]
+    order, ang_sorted, _ = scan.sorted_beams
     confident = mix.w >= min_weight
     visible = np.ones(n)
     mean_free = bearing.copy()
