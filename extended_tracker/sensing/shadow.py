@@ -123,8 +123,16 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
         return Visibility(np.full(n, det.p_d0), ones, None)
     bearing, half, r_near, r_far = _geometry(mix, det.widen_sigmas, 0.0)
     offset = None
+    widen = not with_offset or (det.max_widen > 0 and det.widen_sigmas > 0)
+    widened = _geometry(mix, det.widen_sigmas, det.max_widen) if widen else None
     if with_offset:
-        if det.model == 'scan_shadow':
+        if det.model == 'scan_shadow' and widen:
+            # both intervals of every component in one lookup
+            both, mean_free = _visible_fraction(
+                np.concatenate([bearing, widened[0]]), np.concatenate([half, widened[1]]),
+                np.concatenate([r_near, widened[2]]), scan, scan.ranges, det.shadow_margin)
+            visible, widened_visible, mean_free = both[:n], both[n:], mean_free[:n]
+        elif det.model == 'scan_shadow':
             visible, mean_free = _visible_fraction(bearing, half, r_near, scan, scan.ranges,
                                                    det.shadow_margin)
         else:
@@ -137,9 +145,11 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
         shift = np.where((visible > 0) & (visible < 1), _wrap(mean_free - bearing) * r_c, 0.0)
         offset = across * shift[:, None]
     # p_D from the interval widened by the position uncertainty (capped)
-    if not with_offset or (det.max_widen > 0 and det.widen_sigmas > 0):
-        bw, hw, rnw, rfw = _geometry(mix, det.widen_sigmas, det.max_widen)
-        if det.model == 'scan_shadow':
+    if widen:
+        bw, hw, rnw, rfw = widened
+        if det.model == 'scan_shadow' and with_offset:
+            visible = widened_visible
+        elif det.model == 'scan_shadow':
             visible, _ = _visible_fraction(bw, hw, rnw, scan, scan.ranges, det.shadow_margin)
         else:
             visible, _ = _estimate_shadow(mix, bw, hw, rnw, rfw, scan, det)
