@@ -19,6 +19,7 @@ from scipy.special import digamma, polygamma
 from .ggiw import D, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
+MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
 
 
 def merge_gamma(w, alpha, beta):
@@ -52,6 +53,13 @@ def merge_gamma(w, alpha, beta):
 _HALF_J = 0.5 * np.arange(D)                  # (j - 1) / 2 for j = 1..d
 
 
+def _nu_floor(mean_trace, t):
+    """Smallest ``nu`` whose ``tr E[X] = nu t / (nu - d - 1)`` is within the ratio."""
+    c = MEAN_EXTENT_RATIO * mean_trace
+    base = IW_OFFSET - D - 1                   # nu = d + 1 is v = 2d + 2
+    return np.maximum(base * c / np.maximum(c - t, 1e-300), base + 1e-9)
+
+
 def _iw_psi_sum(nu):
     """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` for scalar or (k,) ``nu``."""
     nu = np.asarray(nu, dtype=float)
@@ -71,13 +79,21 @@ def merge_iw(w, v, V):
     decreases in ``nu``. Newton starts at the weighted mean of the ``nu_i`` (a few steps
     from the root) and is kept inside ``nu > d + 1`` so that ``v > 2d + 2``.
 
+    Near that boundary ``E[X] = nu Psi^-1 / (nu - d - 1)`` diverges: members with very
+    different extents can put the root there (a real replay merged a pedestrian into a
+    2 km semi-axis). ``nu`` is therefore kept where ``tr E[X]`` is at most
+    ``MEAN_EXTENT_RATIO`` times the trace of the mixture's mean extent, i.e.
+    ``nu >= (d + 1) c T / (c T - t)`` with ``T = tr sum w_i E[X_i]``, ``t = tr Psi^-1``
+    (``t <= T`` by Jensen). Ordinary merges stay well inside it and are exact matches.
+
     """
     wn = w / w.sum()
     nu_i = v - D - 1
     Psi = np.sum(wn[:, None, None] * nu_i[:, None, None] * inv2(V), axis=0)
     elog = float(np.sum(wn * (logdet_spd2(V) - _iw_psi_sum(nu_i))))
     target = elog + float(logdet_spd2(Psi))            # the d log 2 terms cancel
-    nu_min = IW_OFFSET - D - 1 + 1e-9
+    mean_x = np.sum(wn[:, None, None] * V / (v - IW_OFFSET)[:, None, None], axis=0)
+    nu_min = _nu_floor(np.trace(mean_x), np.trace(inv2(Psi)))
     nu = float(np.sum(wn * nu_i))
     for _ in range(60):
         x = np.array([0.5 * nu, 0.5 * nu - 0.5])
@@ -90,7 +106,11 @@ def merge_iw(w, v, V):
             nu = nu_new
             break
         nu = nu_new
-    nu = max(nu, nu_min)
+    # f decreases: where f(nu_min) <= 0 the root lies at or below the floor
+    x = np.array([0.5 * nu_min, 0.5 * nu_min - 0.5])
+    if D * np.log(nu_min) - float(digamma(x).sum()) - target <= 0:
+        nu = float(nu_min)
+    nu = max(nu, float(nu_min))
     V_new = nu * inv2(Psi)
     return float(nu + D + 1), symmetrize(V_new)
 
@@ -135,7 +155,9 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     Psi = np.add.reduceat((wn * nu_i)[:, None, None] * inv2(mix.V[idx]), starts)
     elog_x = np.add.reduceat(wn * (logdet_spd2(mix.V[idx]) - _iw_psi_sum(nu_i)), starts)
     target = elog_x + logdet_spd2(Psi)
-    nu_min = IW_OFFSET - D - 1 + 1e-9
+    mean_x = np.add.reduceat(wn[:, None, None] * mix.expected_extent()[idx], starts)
+    iPsi = inv2(Psi)
+    nu_min = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
     nu = np.add.reduceat(wn * nu_i, starts)
     for _ in range(30):
         x = 0.5 * nu[:, None] - _HALF_J
@@ -146,8 +168,11 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
         nu = np.where(nxt > nu_min, nxt, 0.5 * (nu + nu_min))
         if done:
             break
-    nu = np.maximum(nu, nu_min)
-    V = nu[:, None, None] * inv2(Psi)
+    # f decreases: where f(nu_min) <= 0 the root lies at or below the floor
+    x = 0.5 * nu_min[:, None] - _HALF_J
+    at_floor = D * np.log(nu_min) - digamma(x).sum(axis=1) - target <= 0
+    nu = np.where(at_floor, nu_min, np.maximum(nu, nu_min))
+    V = nu[:, None, None] * iPsi
     # label of the heaviest member
     order = np.lexsort((-w, gid))
     first = order[starts]

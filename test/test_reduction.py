@@ -1,0 +1,75 @@
+"""GGIW merging: the inverse Wishart moment match against sampling, and its floor."""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.reduction import merge_groups
+
+D = 2
+
+
+def extent(major, minor, yaw):
+    c, s = np.cos(yaw), np.sin(yaw)
+    rot = np.array([[c, -s], [s, c]])
+    return rot @ np.diag([major ** 2, minor ** 2]) @ rot.T
+
+
+def mixture(w, v, X):
+    """Components with weights ``w``, IW degrees ``v`` and expected extents ``X``."""
+    k = len(w)
+    v = np.asarray(v, dtype=float)
+    V = (v - IW_OFFSET)[:, None, None] * np.asarray(X)
+    return Mixture(np.asarray(w, dtype=float), np.full(k, 10.0), np.ones(k), np.zeros((k, 4)),
+                   np.tile(0.01 * np.eye(4), (k, 1, 1)), v, V, np.zeros(k, dtype=np.int64))
+
+
+def iw_samples(v, V, size, rng):
+    # Koch's (v, V) is scipy's invwishart with df = v - d - 1 (test_ggiw checks it)
+    return stats.invwishart(df=v - D - 1, scale=V).rvs(size=size, random_state=rng)
+
+
+def test_iw_merge_matches_the_mixture_moments_by_sampling():
+    """The merged IW has the mixture's E[X^-1] and E[log|X|], both sides sampled."""
+    rng = np.random.default_rng(7)
+    w = np.array([0.5, 0.3, 0.2])
+    X = [extent(0.3, 0.2, 0.1), extent(0.4, 0.15, 0.8), extent(0.25, 0.25, 0.0)]
+    mix = mixture(w, [14.0, 20.0, 30.0], X)
+    out = merge_groups(mix, [np.arange(3)])
+    n = 200_000
+    counts = rng.multinomial(n, w / w.sum())
+    drawn = np.concatenate([iw_samples(mix.v[i], mix.V[i], c, rng)
+                            for i, c in enumerate(counts)])
+    merged = iw_samples(out.v[0], out.V[0], n, rng)
+    # 2e5 draws: the sampled means are within ~0.5 % (E[X^-1]) and ~3e-3 (E[log|X|]) of
+    # their expectations, so 2 % and 0.02 leave room for both sides' sampling error
+    np.testing.assert_allclose(np.linalg.inv(merged).mean(axis=0),
+                               np.linalg.inv(drawn).mean(axis=0), rtol=2e-2, atol=0.2)
+    gap = np.linalg.slogdet(merged)[1].mean() - np.linalg.slogdet(drawn)[1].mean()
+    assert abs(gap) < 0.02
+    assert out.v[0] < mix.v.min()            # here the match is vaguer than every member
+
+
+def test_iw_merge_stays_finite_where_the_match_reaches_the_boundary():
+    """
+    Members of one pedestrian from a real replay (legtracker positive_1, scan 143): the
+    unconstrained match put v at 6 + 2e-9, where E[X] = V / (v - 6) gave a 2 km semi-axis.
+    The merged mean extent is held to twice the members' mean (trace), E[X^-1] still
+    matched.
+    """
+    v = [6.25, 7.25, 8.25, 7.25, 9.25, 23.0]
+    w = np.array([3.0, 0.29, 0.004, 0.004, 0.84, 0.16])
+    majors = np.array([0.21, 0.33, 0.21, 0.10, 0.42, 0.33])
+    yaws = [0.0, 1.2, 0.3, 2.0, 0.7, 1.5]
+    mix = mixture(w, v, [extent(a, 0.3 * a, y) for a, y in zip(majors, yaws)])
+    out = merge_groups(mix, [np.arange(6)])
+    mean_x = np.einsum('k,kij->ij', w / w.sum(), mix.expected_extent())
+    merged_x = out.V[0] / (out.v[0] - IW_OFFSET)
+    assert np.trace(merged_x) == pytest.approx(2.0 * np.trace(mean_x), rel=1e-9)
+    assert np.sqrt(np.linalg.eigvalsh(merged_x)[-1]) < 2 * majors.max()
+    # E[X^-1] = (v - d - 1) V^-1 is still the mixture's
+    inv_mean = np.einsum('k,kij->ij', w / w.sum(),
+                         (mix.v - D - 1)[:, None, None] * np.linalg.inv(mix.V))
+    np.testing.assert_allclose((out.v[0] - D - 1) * np.linalg.inv(out.V[0]), inv_mean,
+                               rtol=1e-9)
