@@ -20,6 +20,7 @@ from .ggiw import D, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
+MIN_SEMI_AXIS = 0.01     # m: merged extents keep at least this semi-axis (see _floor_extent)
 
 
 def merge_gamma(w, alpha, beta):
@@ -53,6 +54,62 @@ def merge_gamma(w, alpha, beta):
 _HALF_J = 0.5 * np.arange(D)                  # (j - 1) / 2 for j = 1..d
 
 
+def _solve_nu(target, lo, hi, start, iters=60):
+    """
+    Root of ``f(nu) = d log nu - sum_j digamma((nu - j + 1)/2) - target`` (decreasing)
+    in ``[lo, hi]``, one per entry: the end of the bracket where the root lies outside it.
+
+    Newton from ``start``, kept inside a bracket that every evaluation of ``f`` narrows
+    (bisection where a step would leave it). Members with near-singular scale matrices
+    (a wall seen as a line) can make ``f`` positive everywhere: unbounded, Newton ran
+    to ``nu = 4e27``.
+    """
+    hi = np.maximum(hi, lo)
+
+    def f(nu):
+        x = 0.5 * nu[:, None] - _HALF_J
+        return D * np.log(nu) - digamma(x).sum(axis=1) - target, x
+
+    f_lo, _ = f(lo)
+    f_hi, _ = f(hi)
+    nu = np.clip(start, lo, hi)
+    a, b = lo.copy(), hi.copy()
+    for _ in range(iters):
+        val, x = f(nu)
+        a = np.where(val > 0, nu, a)                   # the root is above nu
+        b = np.where(val > 0, b, nu)
+        fp = D / nu - 0.5 * polygamma(1, x).sum(axis=1)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            nxt = nu - val / fp
+        nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
+        done = np.all(np.abs(nxt - nu) <= 1e-10 * nu)
+        nu = nxt
+        if done:
+            break
+    return np.where(f_lo <= 0, lo, np.where(f_hi >= 0, hi, nu))
+
+
+def _floor_extent(V, v):
+    """
+    ``V`` raised so that ``E[X] = V / (v - 2d - 2)`` has no semi-axis under
+    ``MIN_SEMI_AXIS``.
+
+    Notes
+    -----
+    Matching ``E[X^-1]`` averages inverse extents, so merging a line-like object (a wall
+    segment seen for minutes) again and again drives its thin axis to zero: a MiR replay
+    reached 8e-16 m^2, where ``log|V|`` loses all precision and the next merge's solve
+    ran away. One centimetre is below the sensor noise, so the floor changes nothing
+    measurable.
+    """
+    s = v - IW_OFFSET
+    X = V / s[:, None, None]
+    half_tr = 0.5 * (X[:, 0, 0] + X[:, 1, 1])
+    root = np.sqrt(np.maximum(0.25 * (X[:, 0, 0] - X[:, 1, 1]) ** 2 + X[:, 0, 1] ** 2, 0.0))
+    lift = np.maximum(MIN_SEMI_AXIS ** 2 - (half_tr - root), 0.0)
+    return V + (s * lift)[:, None, None] * np.eye(D)
+
+
 def _nu_floor(mean_trace, t):
     """Smallest ``nu`` whose ``tr E[X] = nu t / (nu - d - 1)`` is within the ratio."""
     c = MEAN_EXTENT_RATIO * mean_trace
@@ -77,7 +134,9 @@ def merge_iw(w, v, V):
     ``V = nu Psi^-1`` with ``Psi = sum w_i nu_i V_i^-1`` and
     ``f(nu) = d log nu - sum_j digamma((nu-j+1)/2) - (c + log|Psi| + d log 2) = 0``; ``f``
     decreases in ``nu``. Newton starts at the weighted mean of the ``nu_i`` (a few steps
-    from the root) and is kept inside ``nu > d + 1`` so that ``v > 2d + 2``.
+    from the root) inside a bracket (:func:`_solve_nu`): at most the largest ``nu_i`` (a
+    merge is never more certain than its most certain member) and above ``d + 1`` so that
+    ``v > 2d + 2``.
 
     Near that boundary ``E[X] = nu Psi^-1 / (nu - d - 1)`` diverges: members with very
     different extents can put the root there (a real replay merged a pedestrian into a
@@ -93,25 +152,10 @@ def merge_iw(w, v, V):
     elog = float(np.sum(wn * (logdet_spd2(V) - _iw_psi_sum(nu_i))))
     target = elog + float(logdet_spd2(Psi))            # the d log 2 terms cancel
     mean_x = np.sum(wn[:, None, None] * V / (v - IW_OFFSET)[:, None, None], axis=0)
-    nu_min = _nu_floor(np.trace(mean_x), np.trace(inv2(Psi)))
-    nu = float(np.sum(wn * nu_i))
-    for _ in range(60):
-        x = np.array([0.5 * nu, 0.5 * nu - 0.5])
-        f = D * np.log(nu) - float(digamma(x).sum()) - target
-        fp = D / nu - 0.5 * float(polygamma(1, x).sum())
-        nu_new = nu - f / fp
-        if nu_new <= nu_min:
-            nu_new = 0.5 * (nu + nu_min)
-        if abs(nu_new - nu) <= 1e-10 * nu:
-            nu = nu_new
-            break
-        nu = nu_new
-    # f decreases: where f(nu_min) <= 0 the root lies at or below the floor
-    x = np.array([0.5 * nu_min, 0.5 * nu_min - 0.5])
-    if D * np.log(nu_min) - float(digamma(x).sum()) - target <= 0:
-        nu = float(nu_min)
-    nu = max(nu, float(nu_min))
-    V_new = nu * inv2(Psi)
+    lo = _nu_floor(np.trace(mean_x), np.trace(inv2(Psi)))
+    nu = float(_solve_nu(np.array([target]), np.array([lo]), np.array([np.max(nu_i)]),
+                         np.array([np.sum(wn * nu_i)]))[0])
+    V_new = _floor_extent(nu * inv2(Psi)[None], np.array([nu + D + 1]))[0]
     return float(nu + D + 1), symmetrize(V_new)
 
 
@@ -157,22 +201,10 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     target = elog_x + logdet_spd2(Psi)
     mean_x = np.add.reduceat(wn[:, None, None] * mix.expected_extent()[idx], starts)
     iPsi = inv2(Psi)
-    nu_min = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
-    nu = np.add.reduceat(wn * nu_i, starts)
-    for _ in range(30):
-        x = 0.5 * nu[:, None] - _HALF_J
-        f = D * np.log(nu) - digamma(x).sum(axis=1) - target
-        fp = D / nu - 0.5 * polygamma(1, x).sum(axis=1)
-        nxt = nu - f / fp
-        done = np.all(np.abs(nxt - nu) <= 1e-10 * nu)
-        nu = np.where(nxt > nu_min, nxt, 0.5 * (nu + nu_min))
-        if done:
-            break
-    # f decreases: where f(nu_min) <= 0 the root lies at or below the floor
-    x = 0.5 * nu_min[:, None] - _HALF_J
-    at_floor = D * np.log(nu_min) - digamma(x).sum(axis=1) - target <= 0
-    nu = np.where(at_floor, nu_min, np.maximum(nu, nu_min))
-    V = nu[:, None, None] * iPsi
+    lo = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
+    nu = _solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
+                   np.add.reduceat(wn * nu_i, starts))
+    V = _floor_extent(nu[:, None, None] * iPsi, nu + D + 1)
     # label of the heaviest member
     order = np.lexsort((-w, gid))
     first = order[starts]

@@ -73,3 +73,28 @@ def test_iw_merge_stays_finite_where_the_match_reaches_the_boundary():
                          (mix.v - D - 1)[:, None, None] * np.linalg.inv(mix.V))
     np.testing.assert_allclose((out.v[0] - D - 1) * np.linalg.inv(out.V[0]), inv_mean,
                                rtol=1e-9)
+
+
+def test_iw_merge_of_line_like_members_stays_bounded():
+    """
+    Two members of a wall segment from a MiR replay, their IW scales numerically rank one
+    (eigenvalues 8e-16 and 1.06): the solve for nu ran to 4e27 with divide-by-zero warnings.
+    Now nu stays in [floor, largest member] and the thin axis keeps MIN_SEMI_AXIS.
+    """
+    import warnings
+
+    from extended_tracker.reduction import MIN_SEMI_AXIS
+
+    V = np.array([[[0.5069371854815066, -0.5277826890638175],
+                   [-0.5277826890638175, 0.5494853698902643]],
+                  [[0.5262614863738648, -0.5479016146682755],
+                   [-0.5479016146682755, 0.570431595563959]]])
+    v = np.array([108.1243804631815, 112.1243804631815])
+    w = np.array([2.3891589955608454, 0.9999999733278248])
+    mix = mixture(w, v, V / (v - IW_OFFSET)[:, None, None])
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        out = merge_groups(mix, [np.arange(2)])
+    assert IW_OFFSET < out.v[0] <= v.max() + 1e-9
+    minor = np.linalg.eigvalsh(out.V[0] / (out.v[0] - IW_OFFSET))[0]
+    assert minor >= MIN_SEMI_AXIS ** 2 * (1 - 1e-9)
