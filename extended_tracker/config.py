@@ -331,9 +331,10 @@ PRESETS: dict[str, dict] = {
     # 0.4 m apart. With d_min under that gap every distance partition offers the legs as two
     # cells, and two tight leg tracks explain them better than one person: each walker
     # became two ids. d_min 0.45 keeps a person's legs in one cell (sub-partitioning
-    # still splits a cell that predicted objects say holds two people). The legs' centroid
-    # jumps by a step length within a few scans: sigma_accel 5 lets the track follow.
-    'leg_height': {'partition': {'d_min': 0.45}, 'model': {'sigma_accel': 5.0}},
+    # still splits a cell that predicted objects say holds two people). A larger
+    # sigma_accel (5) followed the legs' jumping centroid but let coasting tracks grow
+    # metres of position uncertainty and claim newcomers far away: left at the default.
+    'leg_height': {'partition': {'d_min': 0.45}},
 }
 
 
