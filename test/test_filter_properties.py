@@ -148,21 +148,43 @@ def test_filter_step_cardinality_sums_to_one(seed, mode):
         assert is_spd(state.mixture.P) if len(state.mixture) else True
 
 
-@given(point_sets(max_n=90), st.floats(0.05, 1.5))
-def test_dense_and_sparse_spanning_forests_agree(pts, d_max):
-    """Boruvka on the dense matrix and scipy's sparse MST: same forest weight and size."""
+@given(point_sets(max_n=90), st.floats(0.05, 1.5), st.booleans())
+def test_dense_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
+    """
+    Boruvka on the dense matrix and scipy's sparse MST over the radius graph's pairs, or
+    over its Delaunay edges (the dense-blob path): same forest weight and size.
+    """
     import extended_tracker.partition as P
 
     dense = P._mst_dense(pts, d_max)
-    saved = P.DENSE_MST_MAX
+    saved = P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT
     try:
         P.DENSE_MST_MAX = -1
+        P.DENSE_PAIRS_PER_POINT = 0 if delaunay else 10**9
         sparse = P._mst_edges(pts, d_max)
     finally:
-        P.DENSE_MST_MAX = saved
+        P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT = saved
     assert len(dense[2]) == len(sparse[2])
     # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
     assert np.isclose(dense[2].sum(), sparse[2].sum(), rtol=1e-12, atol=1e-9)
+
+
+def test_dense_blob_path_on_degenerate_inputs():
+    """Collinear returns (qhull cannot triangulate) and repeated ones on the blob path."""
+    import extended_tracker.partition as P
+
+    line = np.column_stack([np.linspace(0, 3, 80), np.zeros(80)])
+    blob = np.vstack([np.random.default_rng(1).normal(0, 0.05, (120, 2)), [[5.0, 5.0]] * 3])
+    for pts in (line, blob):
+        dense = P._mst_dense(pts, 0.5)
+        saved = P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT
+        try:
+            P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT = -1, 0
+            got = P._mst_edges(pts, 0.5)
+        finally:
+            P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT = saved
+        assert len(got[2]) == len(dense[2])
+        assert np.isclose(got[2].sum(), dense[2].sum(), rtol=1e-12, atol=1e-9)
 
 
 @given(st.lists(st.integers(1, 200), min_size=1, max_size=10), st.floats(0.5, 40.0))
