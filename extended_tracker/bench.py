@@ -13,7 +13,6 @@ Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 import resource
 import time
@@ -37,7 +36,7 @@ def _stats(seconds):
     return float(np.median(ms)), float(np.percentile(ms, 99)), float(np.max(ms))
 
 
-def bench_filter(counts, scans, warm=10, run_scans=60):
+def bench_filter(counts, scans, warm=10, run_scans=60, beams=361, fov_deg=180.0):
     """
     Median and p99 of one filter step on the returns of N pedestrians.
 
@@ -45,7 +44,8 @@ def bench_filter(counts, scans, warm=10, run_scans=60):
     walkers are still in view (over a long run they walk out of the field of view).
     """
     cfg = from_dict({'background': {'enabled': False}})
-    print('filter step (partition, predict, update, reduce, extract), 361 beams, p_D const')
+    print(f'filter step (partition, predict, update, reduce, extract), {beams} beams over '
+          f'{fov_deg:g} deg, p_D const')
     print(f'{"objects":>8s} {"detections":>10s} {"cells":>6s} {"partitions":>10s} '
           f'{"median ms":>9s} {"p99 ms":>7s}')
     rows = []
@@ -53,13 +53,14 @@ def bench_filter(counts, scans, warm=10, run_scans=60):
         times, dets, cells, parts = [], [], [], []
         for rep in range(max(1, scans // run_scans)):
             seed = 1000 * n + rep
-            data = simulate(crowd_scene(n, seed=seed), (run_scans + warm) / 10.0, seed=seed)
+            data = simulate(crowd_scene(n, seed=seed, beams=beams, fov_deg=fov_deg),
+                            (run_scans + warm) / 10.0, seed=seed)
             state = FilterState.initial(cfg)
             for k, (scan, _) in enumerate(data):
-                p = scan_to_points(scan).points
+                sp = scan_to_points(scan)
+                p = sp.points
                 t0 = time.perf_counter()
-                state, est, diag = filter_step(state, p, 0.1, cfg,
-                                               clutter_area=0.5 * math.pi * 169)
+                state, est, diag = filter_step(state, p, 0.1, cfg, clutter_area=sp.area)
                 dt = time.perf_counter() - t0
                 if k >= warm:
                     times.append(dt)
@@ -195,6 +196,9 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     scans = 60 if args.quick else 300
     bench_filter([1, 2, 4, 10, 20, 50], scans)
+    print()
+    # the issue's second target case: 10 objects with ~250 returns (a finer, wider scan)
+    bench_filter([10], scans, beams=1081, fov_deg=270.0)
     bench_pipeline(scans)
     bench_node()
     bench_scaling(args.png, 20 if args.quick else 60)
