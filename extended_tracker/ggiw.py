@@ -95,6 +95,27 @@ class Mixture:
         """Return ``E[gamma] = alpha / beta``, shape (n,)."""
         return self.alpha / self.beta
 
+    def by_label(self):
+        """
+        Components grouped by label, each label's heaviest first.
+
+        Returns
+        -------
+        order : (n,) int array
+            Component indices, labels ascending, weights descending within a label (ties
+            by index).
+        is_head : (n,) bool array
+            Over ``order``: the first (heaviest) component of its label.
+        group : (n,) int array
+            Over ``order``: the label's rank among the labels.
+
+        """
+        order = np.lexsort((-self.w, self.label))
+        lab = self.label[order]
+        is_head = np.ones(len(order), dtype=bool)
+        is_head[1:] = lab[1:] != lab[:-1]
+        return order, is_head, np.cumsum(is_head) - 1
+
 
 # --- closed-form 2x2 symmetric positive definite helpers (batched over leading axes) ---
 
@@ -112,6 +133,17 @@ def inv2(A):
     out[..., 0, 1] = -A[..., 0, 1] / det
     out[..., 1, 0] = -A[..., 1, 0] / det
     return out
+
+
+def eig2(A):
+    """
+    Eigenvalues ``(largest, smallest)`` of symmetric (..., 2, 2) matrices, closed form:
+    ``tr/2 +- sqrt((a - c)^2 / 4 + b^2)``.
+    """
+    a, b, c = A[..., 0, 0], A[..., 0, 1], A[..., 1, 1]
+    half_tr = 0.5 * (a + c)
+    root = np.sqrt(np.maximum(0.25 * (a - c) ** 2 + b * b, 0.0))
+    return half_tr + root, half_tr - root
 
 
 def logdet_spd2(A):
@@ -273,6 +305,15 @@ class PairUpdate:
     P: np.ndarray
     v: np.ndarray
     V: np.ndarray
+
+    def take(self, idx) -> 'PairUpdate':
+        """The pairs at ``idx`` (index array, slice or boolean mask)."""
+        return PairUpdate(self.log_lik[idx], self.alpha[idx], self.beta[idx], self.m[idx],
+                          self.P[idx], self.v[idx], self.V[idx])
+
+    def mixture(self, w, label) -> Mixture:
+        """The updated components as a mixture with weights ``w`` and labels ``label``."""
+        return Mixture(w, self.alpha, self.beta, self.m, self.P, self.v, self.V, label)
 
 
 def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndarray,

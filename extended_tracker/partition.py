@@ -170,10 +170,8 @@ def _mst_dense(points: np.ndarray, d_max: float):
         added = False
         for i in heads.tolist():
             a, b = i, int(j[i])
-            ra, rb = _find(parent, comp[a]), _find(parent, comp[b])
-            if ra == rb:
+            if not union_min(parent, comp[a], comp[b]):
                 continue                              # the other side chose this edge
-            parent[max(ra, rb)] = min(ra, rb)
             rows.append(a)
             cols.append(b)
             lens.append(float(dist[a, b]))
@@ -185,10 +183,21 @@ def _mst_dense(points: np.ndarray, d_max: float):
             np.maximum(np.array(lens), 1e-12))
 
 
-def _find(parent, x):
+def find_root(parent, x):
+    """Root of ``x`` in a union-find forest (list or int array), halving the path."""
     while parent[x] != x:
+        parent[x] = parent[parent[x]]
         x = parent[x]
     return x
+
+
+def union_min(parent, a, b) -> bool:
+    """Join the trees of ``a`` and ``b`` under the smaller root; False if already one."""
+    ra, rb = find_root(parent, a), find_root(parent, b)
+    if ra == rb:
+        return False
+    parent[max(ra, rb)] = min(ra, rb)
+    return True
 
 
 def _roots(parent: np.ndarray) -> np.ndarray:
@@ -243,14 +252,8 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
         stop = int(np.searchsorted(length, t, side='right'))
         if done < stop:
             for a, b in zip(rows_l[done:stop], cols_l[done:stop]):
-                ra = a
-                while parent[ra] != ra:
-                    ra = parent[ra]
-                rb = b
-                while parent[rb] != rb:
-                    rb = parent[rb]
                 # MST edges always join two different trees; the smaller index is the root
-                parent[max(ra, rb)] = min(ra, rb)
+                union_min(parent, a, b)
             parent = _roots(parent)
             done = stop
         out.append(parent.copy())

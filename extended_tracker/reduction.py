@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import digamma, polygamma
 
-from .ggiw import D, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
+from .ggiw import D, eig2, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -103,10 +103,8 @@ def _floor_extent(V, v):
     measurable.
     """
     s = v - IW_OFFSET
-    X = V / s[:, None, None]
-    half_tr = 0.5 * (X[:, 0, 0] + X[:, 1, 1])
-    root = np.sqrt(np.maximum(0.25 * (X[:, 0, 0] - X[:, 1, 1]) ** 2 + X[:, 0, 1] ** 2, 0.0))
-    lift = np.maximum(MIN_SEMI_AXIS ** 2 - (half_tr - root), 0.0)
+    _, minor2 = eig2(V / s[:, None, None])
+    lift = np.maximum(MIN_SEMI_AXIS ** 2 - minor2, 0.0)
     return V + (s * lift)[:, None, None] * np.eye(D)
 
 
@@ -243,10 +241,8 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         return mix, 0
     # Common case in one pass: every component of a label lies within the merge distance
     # of the label's heaviest component; only the other labels go through the greedy loop.
-    order = np.lexsort((-mix.w, mix.label))
+    order, first, gid = mix.by_label()
     lab_sorted = mix.label[order]
-    first = np.concatenate([[True], lab_sorted[1:] != lab_sorted[:-1]])
-    gid = np.cumsum(first) - 1                         # label group of each sorted member
     n_groups = int(gid[-1]) + 1
     head = order[first][gid]                           # heaviest of each member's label
     e = mix.m[order, :2] - mix.m[head, :2]

@@ -9,6 +9,7 @@ the per-scan pipeline (:mod:`extended_tracker.pipeline`) call :func:`predict_sta
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -16,10 +17,10 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
-    cell_stats, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, PairUpdate, predict,
+    cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
     update_pairs,
 )
-from .partition import build_partitions
+from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
 
 NEG_INF = -np.inf
@@ -62,15 +63,14 @@ class Estimates:
 
     def axes(self):
         """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""
-        a = self.X[:, 0, 0]
-        b = self.X[:, 0, 1]
-        c = self.X[:, 1, 1]
-        half_tr = 0.5 * (a + c)
-        root = np.sqrt(np.maximum(0.25 * (a - c) ** 2 + b * b, 0.0))
-        lam1 = half_tr + root
-        lam2 = np.maximum(half_tr - root, 0.0)
-        yaw = 0.5 * np.arctan2(2 * b, a - c)
-        return np.sqrt(lam1), np.sqrt(lam2), yaw
+        return self._axes
+
+    @cached_property
+    def _axes(self):
+        # computed once per scan's estimates, read by messages, markers, shapes and plots
+        lam1, lam2 = eig2(self.X)
+        yaw = 0.5 * np.arctan2(2 * self.X[:, 0, 1], self.X[:, 0, 0] - self.X[:, 1, 1])
+        return np.sqrt(lam1), np.sqrt(np.maximum(lam2, 0.0)), yaw
 
     def rectangle(self):
         """
@@ -211,9 +211,8 @@ def confident_predictions(mix: Mixture, cfg: TrackerConfig, min_weight: float = 
     """Centres, gates and rates of the heaviest component of each heavy label."""
     if not len(mix):
         return None
-    order = np.argsort(-mix.w, kind='stable')
-    _, first = np.unique(mix.label[order], return_index=True)
-    best = order[first]
+    order, is_head, _ = mix.by_label()
+    best = order[is_head]
     best = best[mix.w[best] >= min_weight]
     if not len(best):
         return None
@@ -329,13 +328,11 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                            _pad(rate_scale, n_cells, 1.0), _pad(hidden, n_cells, 0.0),
                            _pad(centroid_offset, n_cells, 0.0))
     k = len(comp)
-    fields_ = ('log_lik', 'alpha', 'beta', 'm', 'P', 'v', 'V')
-    upd = PairUpdate(*(getattr(upd_all, f)[:k] for f in fields_))
-    bupd = PairUpdate(*(getattr(upd_all, f)[k:] for f in fields_))
+    upd, bupd = upd_all.take(slice(0, k)), upd_all.take(slice(k, None))
     p_d_pair = p_d[comp] if pair_p_d is None else pair_p_d(mix, comp, upd.m, upd.P)
     keep = p_d_pair > 0
     comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
-    upd = PairUpdate(*(getattr(upd, f)[keep] for f in fields_))
+    upd = upd.take(keep)
     diag.pairs = len(comp)
     log_pd0 = np.log(cfg.detection.p_d0)
 
@@ -362,15 +359,13 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     w_missed = np.exp(out.log_w_missed[:n_comp])
     w_det = np.exp(out.log_w_detected[comp, cell])
     sel = w_det >= prune
-    detected = Mixture(w_det[sel], upd.alpha[sel], upd.beta[sel], upd.m[sel], upd.P[sel],
-                       upd.v[sel], upd.V[sel], mix.label[comp[sel]])
+    detected = upd.take(sel).mixture(w_det[sel], mix.label[comp[sel]])
     w_birth = np.exp(out.log_w_detected[n_comp, :])
     bsel = np.flatnonzero(w_birth >= cfg.birth.min_weight)
     born, next_label = _label_births(pset, bsel, state.next_label,
                                      *_cell_claims(mix.label[comp], cell, w_det, n_cells),
                                      w_birth)
-    births = Mixture(w_birth[bsel], bupd.alpha[bsel], bupd.beta[bsel], bupd.m[bsel],
-                     bupd.P[bsel], bupd.v[bsel], bupd.V[bsel], born)
+    births = bupd.take(bsel).mixture(w_birth[bsel], born)
     diag.births = len(np.unique(born))
     posterior = Mixture.concat([mix.with_weights(w_missed), detected, births])
 
@@ -441,10 +436,7 @@ def _implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
     coasted until their position is unknown within metres (they could only claim
     far-away returns).
     """
-    X = mix.expected_extent()
-    tr = X[:, 0, 0] + X[:, 1, 1]
-    det = X[:, 0, 0] * X[:, 1, 1] - X[:, 0, 1] ** 2
-    major2 = 0.5 * tr + np.sqrt(np.maximum(0.25 * tr * tr - det, 0.0))
+    major2, _ = eig2(mix.expected_extent())
     pos_var = np.maximum(mix.P[:, 0, 0], mix.P[:, 1, 1])
     return ((major2 > cfg.reduction.max_semi_axis ** 2)
             | (pos_var > cfg.reduction.max_position_std ** 2))
@@ -497,22 +489,13 @@ def _label_births(pset, birth_cells, next_label, claim=None, claim_weight=None,
             out[free], next_label = _label_births(pset, birth_cells[free], next_label)
             return out, next_label
     parent = list(range(k))
-
-    def root(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
     owner = {}
     for i, c in enumerate(birth_cells):
         for z in pset.cells[c].tolist():
             j = owner.setdefault(z, i)
             if j != i:
-                ri, rj = root(i), root(j)
-                if ri != rj:
-                    parent[max(ri, rj)] = min(ri, rj)
-    roots = np.array([root(i) for i in range(k)])
+                union_min(parent, i, j)
+    roots = np.array([find_root(parent, i) for i in range(k)])
     uniq, inverse = np.unique(roots, return_inverse=True)
     return (next_label + inverse).astype(np.int64), next_label + len(uniq)
 
@@ -543,10 +526,8 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     """
     if not len(mix):
         return mix, next_label
-    order = np.lexsort((-mix.w, mix.label))           # each label's heaviest first
-    lab = mix.label[order]
-    is_head = np.concatenate([[True], lab[1:] != lab[:-1]])
-    head = order[np.flatnonzero(is_head)[np.cumsum(is_head) - 1]]
+    order, is_head, group = mix.by_label()
+    head = order[is_head][group]                       # each member's label head
     spread = mix.P[:, :2, :2] + mix.expected_extent()
     e = mix.m[order, :2] - mix.m[head, :2]
     d2 = np.einsum('ki,kij,kj->k', e, inv2(spread[head]), e)
@@ -585,11 +566,9 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     chosen = np.sort(labels[chosen])
     if not len(chosen):
         return Estimates.empty()
-    order = np.lexsort((-mix.w, mix.label))           # each label's heaviest first
-    lab_sorted = mix.label[order]
-    first = np.concatenate([[True], lab_sorted[1:] != lab_sorted[:-1]])
-    heads = order[first]                               # one per label, labels ascending
-    best = heads[np.searchsorted(lab_sorted[first], chosen)]
+    order, is_head, _ = mix.by_label()
+    heads = order[is_head]                             # one per label, labels ascending
+    best = heads[np.searchsorted(mix.label[heads], chosen)]
     lab_w = weight[np.searchsorted(labels, chosen)]
     n_det = n_det or {}
     visibility = visibility or {}
