@@ -110,18 +110,26 @@ _THETA = np.linspace(0, 2 * math.pi, ELLIPSE_SEGMENTS + 1)
 _CORNERS = np.array([(1, 1), (-1, 1), (-1, -1), (1, -1), (1, 1)], dtype=float)
 
 
-def outline_points(centre, X, rectangle: bool) -> list:
-    """Closed outline: the ellipse (p-c)' X^-1 (p-c) = 1, or the second-moment rectangle."""
-    vals, vecs = np.linalg.eigh(X)
-    vals = np.maximum(vals, 1e-10)
-    a, b = math.sqrt(vals[1]), math.sqrt(vals[0])
-    u, v = vecs[:, 1], vecs[:, 0]
+def outline_xy(centre, major: float, minor: float, yaw: float, rectangle: bool) -> np.ndarray:
+    """
+    Closed outline (k, 2) of an extent with semi-axes ``major``, ``minor`` at ``yaw``: the
+    ellipse ``(p-c)' X^-1 (p-c) = 1``, or the second-moment rectangle (sides
+    ``sqrt(3)`` times the semi-axes, see ``Estimates.rectangle``).
+    """
+    u = np.array([math.cos(yaw), math.sin(yaw)])
+    v = np.array([-u[1], u[0]])
     if rectangle:
-        half_l, half_w = math.sqrt(3.0) * a / 2, math.sqrt(3.0) * b / 2
-        pts = centre + np.outer(_CORNERS[:, 0] * half_l, u) + np.outer(_CORNERS[:, 1] * half_w, v)
+        half = math.sqrt(3.0) / 2
+        along, across = half * major * _CORNERS[:, 0], half * minor * _CORNERS[:, 1]
     else:
-        pts = centre + np.outer(a * np.cos(_THETA), u) + np.outer(b * np.sin(_THETA), v)
-    return [{'x': x, 'y': y, 'z': 0.0} for x, y in pts.tolist()]
+        along, across = major * np.cos(_THETA), minor * np.sin(_THETA)
+    return np.asarray(centre) + np.outer(along, u) + np.outer(across, v)
+
+
+def outline_points(centre, major: float, minor: float, yaw: float, rectangle: bool) -> list:
+    """:func:`outline_xy` as ``geometry_msgs/Point`` dictionaries."""
+    return [{'x': x, 'y': y, 'z': 0.0}
+            for x, y in outline_xy(centre, major, minor, yaw, rectangle).tolist()]
 
 
 def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
@@ -135,6 +143,7 @@ def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
     e = result.estimates
     header = header_data(result.stamp_ns, result.frame_id)
     shape = shapes(e, cfg.extraction)
+    major, minor, yaw = e.axes()
     markers = []
     ids = set()
     for j in range(len(e)):
@@ -144,7 +153,8 @@ def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
         c = e.m[j, :2]
         markers.append(_marker(header, 'outline', lab, LINE_STRIP, ADD,
                                scale={'x': 0.04, 'y': 0.0, 'z': 0.0}, color=col,
-                               points=outline_points(c, e.X[j], shape[j] == SHAPE_RECTANGLE)))
+                               points=outline_points(c, major[j], minor[j], yaw[j],
+                                                     shape[j] == SHAPE_RECTANGLE)))
         markers.append(_marker(header, 'label', lab, TEXT_VIEW_FACING, ADD,
                                pose=_pose(c[0], c[1], 0.5), text=str(lab),
                                scale={'x': 0.0, 'y': 0.0, 'z': 0.3}, color=col))

@@ -14,10 +14,10 @@ import matplotlib
 
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Ellipse, Polygon, Wedge  # noqa: E402
+from matplotlib.patches import Polygon, Wedge  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .messages import id_rgba  # noqa: E402
+from .messages import id_rgba, outline_xy  # noqa: E402
 
 
 def id_colour(label: int):
@@ -26,20 +26,11 @@ def id_colour(label: int):
     return c['r'], c['g'], c['b']
 
 
-def _outline(ax, m, X, colour, rectangle=False, lw=1.5, alpha=1.0):
-    vals, vecs = np.linalg.eigh(X)
-    vals = np.maximum(vals, 1e-8)
-    yaw = math.atan2(vecs[1, 1], vecs[0, 1])
-    a, b = math.sqrt(vals[1]), math.sqrt(vals[0])
-    if rectangle:
-        L, W = math.sqrt(3) * a, math.sqrt(3) * b
-        c, s = math.cos(yaw), math.sin(yaw)
-        u, v = np.array([c, s]) * L / 2, np.array([-s, c]) * W / 2
-        pts = np.array([m + u + v, m - u + v, m - u - v, m + u - v])
-        ax.add_patch(Polygon(pts, closed=True, fill=False, ec=colour, lw=lw, alpha=alpha))
-    else:
-        ax.add_patch(Ellipse(m, 2 * a, 2 * b, angle=math.degrees(yaw), fill=False, ec=colour,
-                             lw=lw, alpha=alpha))
+def _outline(ax, estimates, j, colour, rectangle=False, lw=1.5, alpha=1.0):
+    """Object ``j``'s outline, the same polygon as its RViz marker."""
+    major, minor, yaw = estimates.axes()
+    xy = outline_xy(estimates.m[j, :2], major[j], minor[j], yaw[j], rectangle)
+    ax.add_patch(Polygon(xy, closed=True, fill=False, ec=colour, lw=lw, alpha=alpha))
 
 
 def _sensor(ax, angle_lo, angle_hi, range_max):
@@ -83,7 +74,7 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
     for r in results:
         e = r.estimates
         for j, lab in enumerate(e.label.tolist()):
-            tracks.setdefault(lab, []).append((e.m[j, :2], e.X[j], r, j))
+            tracks.setdefault(lab, []).append((e.m[j, :2], r, j))
     short = 0
     for lab, seq in sorted(tracks.items()):
         col = id_colour(lab)
@@ -96,12 +87,12 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         ax.plot(xy[:, 0], xy[:, 1], '-', color=col, lw=1.2, alpha=0.9)
         # a few outlines along the way, the last one bold with the id
         every = max(1, len(seq) // 6)
-        for m, X, r, j in seq[::every]:
+        for _, r, j in seq[::every]:
             rect = bool(is_rectangle(r.estimates)[j]) if is_rectangle else False
-            _outline(ax, m, X, col, rectangle=rect, lw=0.8, alpha=0.5)
-        m, X, r, j = seq[-1]
+            _outline(ax, r.estimates, j, col, rectangle=rect, lw=0.8, alpha=0.5)
+        m, r, j = seq[-1]
         rect = bool(is_rectangle(r.estimates)[j]) if is_rectangle else False
-        _outline(ax, m, X, col, rectangle=rect, lw=2.0)
+        _outline(ax, r.estimates, j, col, rectangle=rect, lw=2.0)
         ax.annotate(str(lab), m, xytext=(4, 4), textcoords='offset points', color=col,
                     fontsize=9, weight='bold')
     ax.set_aspect('equal')
@@ -145,7 +136,7 @@ def plot_scan(result, scan_points, path, title=''):
     e = result.estimates
     for j, lab in enumerate(e.label.tolist()):
         col = id_colour(lab)
-        _outline(ax, e.m[j, :2], e.X[j], col, lw=2)
+        _outline(ax, e, j, col, lw=2)
         ax.annotate(f'{lab} (vis {e.visibility[j]:.2f})', e.m[j, :2], xytext=(4, 4),
                     textcoords='offset points', color=col, fontsize=8)
     ax.set_aspect('equal')

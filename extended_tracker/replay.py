@@ -23,7 +23,7 @@ from .bagio import (
     BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, TRACKS_TYPE,
 )
 from .config import TrackerConfig
-from .messages import markers_data, shapes, tracks_data
+from .messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
 from .pipeline import PipelineState, step
 
 TRACKS_TOPIC = '/tracks'
@@ -180,7 +180,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
 
         plot_run(results, plot_path, title=f'{Path(input_path).name} {topic}: '
                  f'{summary.scans} scans, {summary.distinct_ids} ids', fov=fov,
-                 is_rectangle=lambda e: shapes(e, cfg.extraction) == 1)
+                 is_rectangle=lambda e: shapes(e, cfg.extraction) == SHAPE_RECTANGLE)
         summary.plot = str(plot_path)
     return summary
 

@@ -216,3 +216,28 @@ def test_log_gamma2_equals_scipy_multigammaln():
 
     a = np.array([0.6, 1.0, 2.5, 7.3, 150.0, 1e5])
     np.testing.assert_allclose(log_gamma2(a), [multigammaln(x, 2) for x in a], rtol=1e-13)
+
+
+def test_closed_form_eigenvalues_and_outlines():
+    """eig2 against LAPACK; marker outlines lie on the extent ellipse (p-c)'X^-1(p-c) = 1."""
+    from extended_tracker.ggiw import eig2
+    from extended_tracker.messages import outline_xy
+    from extended_tracker.tracker import Estimates
+
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(50, 2, 2))
+    X = A @ np.swapaxes(A, 1, 2) + 1e-3 * np.eye(2)
+    big, small = eig2(X)
+    ref = np.linalg.eigvalsh(X)
+    # rtol: the closed form's cancellation in tr/2 - root for condition numbers up to ~1e4
+    np.testing.assert_allclose(big, ref[:, 1], rtol=1e-12)
+    np.testing.assert_allclose(small, ref[:, 0], rtol=1e-8, atol=1e-14)
+    k = len(X)
+    est = Estimates(np.arange(k), np.ones(k), np.zeros((k, 4)), np.zeros((k, 4, 4)), X,
+                    np.ones(k), np.zeros(k, np.int64), np.ones(k))
+    major, minor, yaw = est.axes()
+    for j in range(k):
+        xy = outline_xy(np.array([1.0, -2.0]), major[j], minor[j], yaw[j], False)
+        e = xy - [1.0, -2.0]
+        q = np.einsum('ki,ij,kj->k', e, np.linalg.inv(X[j]), e)
+        np.testing.assert_allclose(q, 1.0, rtol=1e-8)
