@@ -221,12 +221,12 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
               'capped_cells', 'capped_components', 'oversized'):
         diag[k] = getattr(fdiag, k)
-    card = np.exp(new_filter.log_card)
     new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,
                         frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
                         elapsed=state.elapsed + dt)
-    result = StepResult(now, frame, estimates, card, float(np.sum(np.arange(len(card)) * card)),
-                        points, bg_points, diag, event, None, 0.0)
+    card, mean = _card_of(new_state)
+    result = StepResult(now, frame, estimates, card, mean, points, bg_points, diag, event,
+                        None, 0.0)
     result.processing_time = time.perf_counter() - t0
     return new_state, result
 
