@@ -21,7 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
+from scipy.cluster.hierarchy import linkage
 from scipy.spatial import cKDTree, Delaunay, QhullError
+from scipy.spatial.distance import pdist
 
 
 @dataclass
@@ -89,15 +91,57 @@ class PartitionSet:
         return True
 
 
-DENSE_MST_MAX = 60      # up to this many detections Boruvka on the dense matrix wins (measured)
+LINKAGE_MAX = 1500      # up to this many detections: scipy's single linkage on all pairs
 DENSE_PAIRS_PER_POINT = 16   # beyond this many pairs within d_max per point: Delaunay edges
+
+
+def _merges(points: np.ndarray, d_max: float):
+    """
+    The single-linkage merges up to height ``d_max``, in ascending height.
+
+    Returns
+    -------
+    a, b : (k,) int arrays
+        The smallest detection index of each of the two clusters joined.
+    height : (k,) array
+        The merge heights (the minimum spanning forest's edge lengths).
+
+    Notes
+    -----
+    Up to ``LINKAGE_MAX`` detections this is scipy's single linkage over all pairwise
+    distances (an O(n^2) MST in C: 0.6 ms for 400 returns, 4.5 ms for 1000, several times
+    faster than a sparse MST over the radius graph); beyond it, the sparse MST of the
+    radius-``d_max`` graph, whose merges are read by a union-find pass.
+    """
+    n = len(points)
+    if n < 2:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+    if n <= LINKAGE_MAX:
+        z = linkage(pdist(points), method='single')
+        k = int(np.searchsorted(z[:, 2], d_max, side='right'))
+        pair = z[:k, :2].astype(np.int64).tolist()
+        rep = list(range(n)) + [0] * k                # a cluster's smallest detection index
+        a, b = [0] * k, [0] * k
+        for i, (u, v) in enumerate(pair):
+            ru, rv = rep[u], rep[v]
+            a[i], b[i] = ru, rv
+            rep[n + i] = ru if ru < rv else rv
+        return np.array(a, dtype=np.int64), np.array(b, dtype=np.int64), z[:k, 2].copy()
+    rows, cols, length = _mst_edges(points, d_max)
+    order = np.argsort(length, kind='stable')
+    parent = list(range(n))
+    a, b = [], []
+    for u, v in zip(rows[order].tolist(), cols[order].tolist()):
+        ru, rv = find_root(parent, u), find_root(parent, v)
+        a.append(ru)
+        b.append(rv)
+        parent[max(ru, rv)] = min(ru, rv)
+    return np.array(a, dtype=np.int64), np.array(b, dtype=np.int64), length[order]
 
 
 def _mst_edges(points: np.ndarray, d_max: float):
     """Edges (i, j, length) of the minimum spanning forest of the radius-``d_max`` graph."""
     n = len(points)
-    if n <= DENSE_MST_MAX:
-        return _mst_dense(points, d_max)
     tree = cKDTree(points)
     pairs = tree.query_pairs(d_max, output_type='ndarray')
     if not len(pairs):
@@ -133,54 +177,6 @@ def _delaunay_pairs(points: np.ndarray):
     if len(tri.coplanar):
         e = np.concatenate([e, tri.coplanar[:, [0, 2]]])
     return np.unique(np.sort(e, axis=1), axis=0)
-
-
-def _mst_dense(points: np.ndarray, d_max: float):
-    """
-    Minimum spanning forest of the radius-``d_max`` graph by Boruvka rounds on the dense
-    distance matrix (each round: every component's shortest outgoing edge, vectorised).
-
-    Ties are broken by edge index, so the chosen edges never close a cycle; at most
-    log2(n) rounds.
-    """
-    n = len(points)
-    if n < 2:
-        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
-    diff = points[:, None, :] - points[None, :, :]
-    dist = np.sqrt(np.einsum('ijk,ijk->ij', diff, diff))
-    dist[dist > d_max] = np.inf
-    np.fill_diagonal(dist, np.inf)
-    # lexicographic tie-break: (distance, smaller index, larger index)
-    key = dist + 1e-12 * (np.minimum.outer(np.arange(n), np.arange(n)) * n
-                          + np.maximum.outer(np.arange(n), np.arange(n))) / (n * n)
-    comp = np.arange(n)
-    rows, cols, lens = [], [], []
-    while True:
-        masked = np.where(comp[:, None] == comp[None, :], np.inf, key)
-        j = np.argmin(masked, axis=1)
-        best = masked[np.arange(n), j]
-        # per component, the row holding its shortest outgoing edge
-        order = np.lexsort((best, comp))
-        first = np.concatenate([[True], comp[order][1:] != comp[order][:-1]])
-        heads = order[first]
-        heads = heads[np.isfinite(best[heads])]
-        if not len(heads):
-            break
-        parent = comp.copy()
-        added = False
-        for i in heads.tolist():
-            a, b = i, int(j[i])
-            if not union_min(parent, comp[a], comp[b]):
-                continue                              # the other side chose this edge
-            rows.append(a)
-            cols.append(b)
-            lens.append(float(dist[a, b]))
-            added = True
-        if not added:
-            break
-        comp = _roots(parent)[comp]
-    return (np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64),
-            np.maximum(np.array(lens), 1e-12))
 
 
 def find_root(parent, x):
@@ -225,18 +221,16 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
 
     Notes
     -----
-    The MST edges are merged in ascending length with a union-find and the labels read at
-    each kept threshold.
+    The single-linkage merges are applied in ascending height and the labels read at each
+    kept threshold.
 
     """
     n = len(points)
     if n == 0:
         return [], 0
-    rows, cols, length = _mst_edges(points, d_max)
-    order = np.argsort(length, kind='stable')
-    rows, cols, length = rows[order], cols[order], length[order]
-    # thresholds: d_min, then every distinct MST edge length in (d_min, d_max]
-    heights = np.unique(length[(length > d_min) & (length <= d_max)])
+    a, b, length = _merges(points, d_max)
+    # thresholds: d_min, then every distinct merge height in (d_min, d_max]
+    heights = np.unique(length[length > d_min])
     thresholds = np.concatenate([[d_min], heights])
     dropped = 0
     if len(thresholds) > max_thresholds:
@@ -244,16 +238,14 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
                                               max_thresholds)).astype(int))
         dropped = len(thresholds) - len(keep)
         thresholds = thresholds[keep]
+    # each merge joins two roots (smallest indices) under the smaller one
     parent = np.arange(n)
+    hi, lo = np.maximum(a, b), np.minimum(a, b)
     out = []
     done = 0
-    rows_l, cols_l = rows.tolist(), cols.tolist()
-    for t in thresholds:
-        stop = int(np.searchsorted(length, t, side='right'))
+    for stop in np.searchsorted(length, thresholds, side='right').tolist():
         if done < stop:
-            for a, b in zip(rows_l[done:stop], cols_l[done:stop]):
-                # MST edges always join two different trees; the smaller index is the root
-                union_min(parent, a, b)
+            parent[hi[done:stop]] = lo[done:stop]
             parent = _roots(parent)
             done = stop
         out.append(parent.copy())

@@ -148,22 +148,35 @@ def test_filter_step_cardinality_sums_to_one(seed, mode):
         assert is_spd(state.mixture.P) if len(state.mixture) else True
 
 
+def _sparse_merges(pts, d_max, delaunay):
+    """The radius-graph path of ``partition._merges`` (scipy's sparse MST), forced."""
+    import extended_tracker.partition as P
+
+    saved = P.LINKAGE_MAX, P.DENSE_PAIRS_PER_POINT
+    try:
+        P.LINKAGE_MAX = -1
+        P.DENSE_PAIRS_PER_POINT = 0 if delaunay else 10**9
+        return P._merges(pts, d_max)
+    finally:
+        P.LINKAGE_MAX, P.DENSE_PAIRS_PER_POINT = saved
+
+
 @given(point_sets(max_n=90), st.floats(0.05, 1.5), st.booleans())
-def test_dense_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
+def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     """
-    Boruvka on the dense matrix and scipy's sparse MST over the radius graph's pairs, or
-    over its Delaunay edges (the dense-blob path): same forest weight and size.
+    Single linkage over all pairs and scipy's sparse MST over the radius graph's pairs, or
+    over its Delaunay edges (the dense-blob path): same forest weight and size, and each
+    merge joins two clusters under their smallest index.
     """
     import extended_tracker.partition as P
 
-    dense = P._mst_dense(pts, d_max)
-    saved = P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT
-    try:
-        P.DENSE_MST_MAX = -1
-        P.DENSE_PAIRS_PER_POINT = 0 if delaunay else 10**9
-        sparse = P._mst_edges(pts, d_max)
-    finally:
-        P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT = saved
+    for a, b, h in (P._merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)):
+        assert np.all(np.diff(h) >= 0) and np.all(h <= d_max)
+        parent = list(range(len(pts)))
+        for u, v in zip(a.tolist(), b.tolist()):
+            assert parent[u] == u and parent[v] == v and u != v     # both are roots
+            parent[max(u, v)] = min(u, v)
+    dense, sparse = P._merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)
     assert len(dense[2]) == len(sparse[2])
     # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
     assert np.isclose(dense[2].sum(), sparse[2].sum(), rtol=1e-12, atol=1e-9)
@@ -176,13 +189,8 @@ def test_dense_blob_path_on_degenerate_inputs():
     line = np.column_stack([np.linspace(0, 3, 80), np.zeros(80)])
     blob = np.vstack([np.random.default_rng(1).normal(0, 0.05, (120, 2)), [[5.0, 5.0]] * 3])
     for pts in (line, blob):
-        dense = P._mst_dense(pts, 0.5)
-        saved = P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT
-        try:
-            P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT = -1, 0
-            got = P._mst_edges(pts, 0.5)
-        finally:
-            P.DENSE_MST_MAX, P.DENSE_PAIRS_PER_POINT = saved
+        dense = P._merges(pts, 0.5)
+        got = _sparse_merges(pts, 0.5, True)
         assert len(got[2]) == len(dense[2])
         assert np.isclose(got[2].sum(), dense[2].sum(), rtol=1e-12, atol=1e-9)
 
