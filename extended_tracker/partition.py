@@ -90,6 +90,53 @@ class PartitionSet:
         self.partitions.append(np.array(ids, dtype=np.int64))
         return True
 
+    def add_nested(self, partitions: list, max_partitions: int, max_cells: int) -> None:
+        """
+        Add a sequence of partitions, each coarser than the one before, as :meth:`add` would.
+
+        A label must be the smallest detection index of its cell (as
+        :func:`distance_partitions` gives). From one partition to the next only the cells
+        that grew are new; the others keep their ids, so the work per partition is the
+        detections that moved and the changed cells, not every cell again.
+        """
+        current = {}                                  # label -> [members, cell id or None]
+        prev = None
+        for labels in partitions:
+            if prev is None:
+                order = np.argsort(labels, kind='stable')
+                bounds = np.flatnonzero(np.diff(labels[order])) + 1
+                groups = np.split(order, bounds)
+                current = {int(labels[g[0]]): [g, None] for g in groups}
+                fresh = list(current)
+            else:
+                moved = labels != prev
+                for r in np.unique(prev[moved]).tolist():
+                    del current[r]                    # absorbed into a smaller label
+                fresh = np.unique(labels[moved]).tolist()
+                for r in fresh:
+                    current[r] = [np.flatnonzero(labels == r), None]
+            prev = labels
+            for r in fresh:
+                entry = current[r]
+                entry[1] = self._index.get(entry[0].tobytes())
+            if len(self.partitions) >= max_partitions:
+                self.capped_partitions += 1
+                continue
+            ordered = [current[r] for r in sorted(current)]
+            new_cells = [e for e in ordered if e[1] is None]
+            if not new_cells and tuple(sorted(e[1] for e in ordered)) + (0,) in self._seen:
+                continue
+            if len(self.cells) + len(new_cells) > max_cells:
+                self.capped_cells += len(new_cells)
+                continue
+            for e in new_cells:
+                e[1] = len(self.cells)
+                self.cells.append(e[0])
+                self._index[e[0].tobytes()] = e[1]
+            ids = [e[1] for e in ordered]
+            self._seen.add(tuple(sorted(ids)) + (0,))
+            self.partitions.append(np.array(ids, dtype=np.int64))
+
 
 LINKAGE_MAX = 1500      # up to this many detections: scipy's single linkage on all pairs
 DENSE_PAIRS_PER_POINT = 16   # beyond this many pairs within d_max per point: Delaunay edges
@@ -345,8 +392,7 @@ def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> 
     if cfg.prediction_partition and predicted is not None and len(predicted['centre']):
         pred_labels = prediction_partition(points, predicted, dist[len(dist) // 2])
         pset.add(pred_labels, cfg.max_partitions, cfg.max_cells)
-    for labels in dist:
-        pset.add(labels, cfg.max_partitions, cfg.max_cells)
+    pset.add_nested(dist, cfg.max_partitions, cfg.max_cells)
     if cfg.sub_partition:
         _sub_partitions(points, pset, dist, predicted, cfg, seed)
     return pset

@@ -82,6 +82,30 @@ def test_every_partition_covers_each_detection_once(pts, d_min, span):
     assert len(keys) == len(pset.cells)
 
 
+@given(point_sets(max_n=60), st.floats(0.0, 0.5), st.floats(0.05, 2.0),
+       st.integers(1, 12), st.integers(1, 80), st.booleans())
+def test_nested_add_equals_one_add_per_partition(pts, d_min, span, max_parts, max_cells, first):
+    """
+    ``PartitionSet.add_nested`` (only changed cells looked up) gives the same cells,
+    partitions and cap counters as :meth:`PartitionSet.add` on each partition in turn,
+    also after another partition was added first (shared cells, a duplicate partition).
+    """
+    from extended_tracker.partition import PartitionSet
+
+    dist, _ = distance_partitions(pts, d_min, d_min + span, 40)
+    sets = PartitionSet(), PartitionSet()
+    if first and len(pts):
+        for p in sets:
+            p.add(dist[len(dist) // 2].copy(), max_parts, max_cells)
+    for labels in dist:
+        sets[0].add(labels, max_parts, max_cells)
+    sets[1].add_nested(dist, max_parts, max_cells)
+    a, b = sets
+    assert [c.tolist() for c in a.cells] == [c.tolist() for c in b.cells]
+    assert [p.tolist() for p in a.partitions] == [p.tolist() for p in b.partitions]
+    assert (a.capped_partitions, a.capped_cells) == (b.capped_partitions, b.capped_cells)
+
+
 @given(point_sets(max_n=25), st.floats(0.05, 1.5))
 def test_distance_partition_matches_definition(pts, d):
     """Threshold partition == connected components of 'closer than d' (checked by BFS)."""
