@@ -106,3 +106,48 @@ def test_occlusion_scan_shadow_keeps_the_id_constant_pd_does_not():
     assert kept['scan_shadow'] >= 19, kept
     # with a constant p_D the walker is deleted behind the occluder and reborn
     assert kept['constant'] <= 2, kept
+
+
+def test_range_minimum_matches_slices():
+    from extended_tracker.sensing.shadow import _range_min
+
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 7, 64, 1081):
+        values = rng.exponential(5.0, n)
+        values[rng.random(n) < 0.2] = np.inf
+        lo = rng.integers(0, n, 300)
+        hi = np.minimum(lo + 1 + rng.integers(0, n, 300), n)
+        got = _range_min(values, lo, hi)
+        want = np.array([values[a:b].min() for a, b in zip(lo, hi)])
+        assert np.array_equal(got, want)
+
+
+def test_visible_fraction_matches_a_per_component_loop():
+    """
+    Blocked share and mean free angle of every interval, narrow and hundreds of beams
+    wide, clear and partly shadowed, against a plain loop over each interval's beams.
+    """
+    from extended_tracker.sensing.shadow import _visible_fraction
+
+    rng = np.random.default_rng(5)
+    objects = [SimObject(tuple(rng.uniform([-6, -6], [6, 6])), a=0.3, b=0.2) for _ in range(12)]
+    sp = scan_of(objects, LaserSpec(angle_min=-0.75 * np.pi, angle_max=0.75 * np.pi,
+                                    n_beams=1081, range_max=30.0, noise_std=0.0, dropout=0.0))
+    k = 400
+    bearing = rng.uniform(sp.angle_lo, sp.angle_hi, k)
+    half = rng.choice([1e-4, 0.01, 0.1, 0.5, 1.5], k)
+    r_near = rng.uniform(0.5, 10.0, k)
+    margin = 0.3
+    frac, mean_free = _visible_fraction(bearing, half, r_near, sp, sp.ranges, margin)
+    order = np.argsort(sp.angles, kind='stable')
+    ang, rg = sp.angles[order], sp.ranges[order]
+    for i in range(k):
+        inside = np.flatnonzero((ang >= bearing[i] - half[i]) & (ang <= bearing[i] + half[i]))
+        if not len(inside):                                   # the nearest beam
+            inside = [min(np.searchsorted(ang, bearing[i]), len(ang) - 1)]
+        free = [j for j in inside if not rg[j] < r_near[i] - margin]
+        want_mean = np.mean(ang[free]) if free else bearing[i]
+        assert mean_free[i] == pytest.approx(want_mean, abs=1e-12)
+        lo_edge, hi_edge = bearing[i] - half[i], bearing[i] + half[i]
+        if sp.angle_lo <= lo_edge and hi_edge <= sp.angle_hi:     # wholly in view
+            assert frac[i] == pytest.approx(len(free) / len(inside), abs=1e-12)

@@ -54,6 +54,29 @@ def _geometry(mix: Mixture, widen_sigmas: float, max_widen: float):
     return bearing, half_angle, np.maximum(r - along, 0.0), r + along
 
 
+def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """
+    ``min(values[lo:hi])`` of many non-empty ranges at once, by a sparse table.
+
+    Level ``l`` holds the minima of the ``2**l`` values from each position; a range is
+    covered by two (overlapping) blocks of the largest level that fits it.
+    """
+    n = len(values)
+    levels = [values]
+    size = 1
+    while 2 * size <= n:
+        prev = levels[-1]
+        levels.append(np.minimum(prev[:len(prev) - size], prev[size:]))
+        size *= 2
+    table = np.full((len(levels), n), np.inf)
+    for lev, row in enumerate(levels):
+        table[lev, :len(row)] = row
+    width = np.maximum(hi - lo, 1)
+    lev = np.floor(np.log2(width)).astype(np.int64)
+    span = np.left_shift(1, lev)
+    return np.minimum(table[lev, lo], table[lev, np.maximum(hi - span, lo)])
+
+
 def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range, margin):
     """
     Fraction of the beams in each component's interval not blocked by a nearer return.
@@ -76,11 +99,16 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     width = hi - lo
     thr = r_near - margin
     blocked_n = np.zeros(k)
-    free_sum = np.zeros(k)
-    # one padded gather per class of widths (up to 64 beams, then doubling), so the work
-    # stays within twice the total width and the calls are a handful, not one per object
+    # intervals whose nearest return is not nearer than the object are all free: their
+    # count is the width and their angle sum a prefix-sum difference
+    clear = _range_min(rng, lo, hi) >= thr
+    cum = np.concatenate([[0.0], np.cumsum(ang)])
+    free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
+    # the others: one padded gather per class of widths (up to 64 beams, then doubling),
+    # so the work stays within twice their total width and the calls are a handful
     cls = np.maximum(np.ceil(np.log2(np.maximum(width, 1) / GATHER_WIDTH)), 0).astype(int)
-    for c in np.unique(cls).tolist():
+    cls[clear] = -1
+    for c in np.unique(cls[~clear]).tolist():
         ni = np.flatnonzero(cls == c)
         w_max = int(width[ni].max())
         idx = lo[ni, None] + np.arange(w_max)[None, :]
