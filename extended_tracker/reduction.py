@@ -14,13 +14,19 @@ equation, by bisection here (monotone, vectorised).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import digamma, polygamma
+from scipy.special import digamma, zeta
 
 from .ggiw import D, eig2, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
 MIN_SEMI_AXIS = 0.01     # m: merged extents keep at least this semi-axis (see _floor_extent)
+
+
+def _trigamma(x):
+    """``polygamma(1, x)``, called as the Hurwitz zeta ``zeta(2, x)`` it evaluates (the same
+    values, without polygamma's Python wrapper, which also evaluates digamma)."""
+    return zeta(2.0, x)
 
 
 def merge_gamma(w, alpha, beta):
@@ -39,7 +45,7 @@ def merge_gamma(w, alpha, beta):
     a = (3 - c + np.sqrt((c - 3) ** 2 + 24 * c)) / (12 * c)     # Minka's starting point
     for _ in range(20):
         f = np.log(a) - digamma(a) - c
-        fp = 1 / a - polygamma(1, a)
+        fp = 1 / a - _trigamma(a)
         step = f / fp
         a_new = a - step
         if a_new <= 0:
@@ -78,7 +84,7 @@ def _solve_nu(target, lo, hi, start, iters=60):
         val, x = f(nu)
         a = np.where(val > 0, nu, a)                   # the root is above nu
         b = np.where(val > 0, b, nu)
-        fp = D / nu - 0.5 * polygamma(1, x).sum(axis=1)
+        fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
         with np.errstate(divide='ignore', invalid='ignore'):
             nxt = nu - val / fp
         nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
@@ -187,7 +193,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     c = np.maximum(np.log(mean) - elog, 1e-12)
     a = (3 - c + np.sqrt((c - 3) ** 2 + 24 * c)) / (12 * c)      # Minka's start
     for _ in range(20):
-        step = (np.log(a) - digamma(a) - c) / (1 / a - polygamma(1, a))
+        step = (np.log(a) - digamma(a) - c) / (1 / a - _trigamma(a))
         a = np.where(a - step > 0, a - step, a / 2)
         if np.all(np.abs(step) <= 1e-10 * a):
             break
