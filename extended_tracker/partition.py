@@ -309,8 +309,8 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     n = len(points)
     if k >= n:
         return np.arange(n)
-    rng = np.random.default_rng(seed)
     if init is None:
+        rng = np.random.default_rng(seed)              # 50 us to make: only when seeding
         centres = [points[rng.integers(n)]]
         for _ in range(1, k):
             d2 = np.min(((points[:, None, :] - np.array(centres)[None]) ** 2).sum(-1), axis=1)
