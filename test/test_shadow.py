@@ -122,10 +122,12 @@ def test_range_minimum_matches_slices():
         assert np.array_equal(got, want)
 
 
-def test_visible_fraction_matches_a_per_component_loop():
+@pytest.mark.parametrize('k, halves', [(400, [1e-4, 0.01, 0.1, 0.5, 1.5]), (6, [1e-4, 0.01])])
+def test_visible_fraction_matches_a_per_component_loop(k, halves):
     """
     Blocked share and mean free angle of every interval, narrow and hundreds of beams
-    wide, clear and partly shadowed, against a plain loop over each interval's beams.
+    wide, clear and partly shadowed, against a plain loop over each interval's beams;
+    many wide intervals take the range-minimum path, a few narrow ones the plain gather.
     """
     from extended_tracker.sensing.shadow import _visible_fraction
 
@@ -133,9 +135,8 @@ def test_visible_fraction_matches_a_per_component_loop():
     objects = [SimObject(tuple(rng.uniform([-6, -6], [6, 6])), a=0.3, b=0.2) for _ in range(12)]
     sp = scan_of(objects, LaserSpec(angle_min=-0.75 * np.pi, angle_max=0.75 * np.pi,
                                     n_beams=1081, range_max=30.0, noise_std=0.0, dropout=0.0))
-    k = 400
     bearing = rng.uniform(sp.angle_lo, sp.angle_hi, k)
-    half = rng.choice([1e-4, 0.01, 0.1, 0.5, 1.5], k)
+    half = rng.choice(halves, k)
     r_near = rng.uniform(0.5, 10.0, k)
     margin = 0.3
     frac, mean_free = _visible_fraction(bearing, half, r_near, sp, sp.ranges, margin)

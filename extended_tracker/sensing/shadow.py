@@ -100,10 +100,15 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     thr = r_near - margin
     blocked_n = np.zeros(k)
     # intervals whose nearest return is not nearer than the object are all free: their
-    # count is the width and their angle sum a prefix-sum difference
-    clear = _range_min(rng, lo, hi) >= thr
-    cum = np.concatenate([[0.0], np.cumsum(ang)])
-    free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
+    # count is the width and their angle sum a prefix-sum difference. Worth it when the
+    # intervals hold more beams than the range-minimum table costs (B log2 B).
+    if width.sum() > len(ang) * np.log2(max(len(ang), 2)):
+        clear = _range_min(rng, lo, hi) >= thr
+        cum = np.concatenate([[0.0], np.cumsum(ang)])
+        free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
+    else:
+        clear = np.zeros(k, dtype=bool)
+        free_sum = np.zeros(k)
     # the others: one padded gather per class of widths (up to 64 beams, then doubling),
     # so the work stays within twice their total width and the calls are a handful
     cls = np.maximum(np.ceil(np.log2(np.maximum(width, 1) / GATHER_WIDTH)), 0).astype(int)
