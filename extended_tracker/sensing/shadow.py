@@ -38,7 +38,13 @@ class Visibility:
 
 
 def _geometry(mix: Mixture, widen_sigmas: float, max_widen: float):
-    """Bearing, half-width (rad), near and far range of each component's ellipse."""
+    """
+    Bearing, half-width (rad), near and far range of each component's ellipse.
+
+    Returns ``(bearing, half, half_widened, r_near, r_far)``: ``half`` from the expected
+    extent alone, ``half_widened`` with ``widen_sigmas`` position stds across the line of
+    sight added (at most ``max_widen`` metres).
+    """
     c = mix.m[:, :2]
     r = np.hypot(c[:, 0], c[:, 1])
     bearing = np.arctan2(c[:, 1], c[:, 0])
@@ -48,10 +54,10 @@ def _geometry(mix: Mixture, widen_sigmas: float, max_widen: float):
     along = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', e, X, e), 0.0))
     across = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, X, u), 0.0))
     sigma = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, mix.P[:, :2, :2], u), 0.0))
-    half = across + np.minimum(widen_sigmas * sigma, max_widen)
+    half = np.stack([across, across + np.minimum(widen_sigmas * sigma, max_widen)])
     with np.errstate(divide='ignore', invalid='ignore'):
         half_angle = np.where(r > half, np.arcsin(np.clip(half / r, 0, 1)), np.pi / 2)
-    return bearing, half_angle, np.maximum(r - along, 0.0), r + along
+    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, 0.0), r + along
 
 
 def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -154,10 +160,11 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
     if det.model == 'constant' or scan is None or n == 0:
         ones = np.ones(n)
         return Visibility(np.full(n, det.p_d0), ones, None)
-    bearing, half, r_near, r_far = _geometry(mix, det.widen_sigmas, 0.0)
+    bearing, half, half_widened, r_near, r_far = _geometry(mix, det.widen_sigmas,
+                                                          det.max_widen)
     offset = None
     widen = not with_offset or (det.max_widen > 0 and det.widen_sigmas > 0)
-    widened = _geometry(mix, det.widen_sigmas, det.max_widen) if widen else None
+    widened = (bearing, half_widened, r_near, r_far) if widen else None
     if with_offset:
         if det.model == 'scan_shadow' and widen:
             # both intervals of every component in one lookup
