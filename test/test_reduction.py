@@ -98,3 +98,37 @@ def test_iw_merge_of_line_like_members_stays_bounded():
     assert IW_OFFSET < out.v[0] <= v.max() + 1e-9
     minor = np.linalg.eigvalsh(out.V[0] / (out.v[0] - IW_OFFSET))[0]
     assert minor >= MIN_SEMI_AXIS ** 2 * (1 - 1e-9)
+
+
+def test_nu_solver_matches_brentq_and_clamps_to_the_bracket():
+    """
+    ``_solve_nu`` against scipy's brentq on the same scalar equation, entry by entry, with
+    roots inside the bracket, at either end, beyond it, and brackets of zero width (equal
+    members), all in one batch.
+    """
+    from scipy.optimize import brentq
+    from scipy.special import digamma
+
+    from extended_tracker.reduction import _solve_nu
+
+    def f(nu, t):
+        return 2 * np.log(nu) - digamma(0.5 * nu) - digamma(0.5 * nu - 0.5) - t
+
+    rng = np.random.default_rng(7)
+    k = 300
+    lo = rng.uniform(3.0 + 1e-9, 6.0, k)
+    hi = lo + rng.choice([0.0, 1e-9, 1.0, 50.0, 500.0], k)
+    # targets from a nu inside, below or above the bracket
+    nu_true = np.where(rng.random(k) < 0.6, rng.uniform(lo, hi),
+                       np.where(rng.random(k) < 0.5, lo * 0.9, hi * 1.5 + 1))
+    target = f(nu_true, 0.0)
+    got = _solve_nu(target, lo, hi, rng.uniform(lo, hi))
+    for i in range(k):
+        f_lo, f_hi = f(lo[i], target[i]), f(hi[i], target[i])
+        if f_lo <= 0:
+            want = lo[i]
+        elif f_hi >= 0:
+            want = hi[i]
+        else:
+            want = brentq(f, lo[i], hi[i], args=(target[i],), xtol=1e-14, rtol=1e-15)
+        assert got[i] == pytest.approx(want, rel=1e-9)
