@@ -1,0 +1,85 @@
+"""
+Duplicate labels: two labels on one object become one; two objects keep theirs.
+
+The rule (``tracker._fuse_duplicate_labels``): heads within the merge distance of each
+other, both ways, and label weights summing to at most ``reduction.fuse_weight``.
+"""
+
+import numpy as np
+import pytest
+
+from extended_tracker.config import from_dict
+from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.tracker import _fuse_duplicate_labels, FilterState, filter_step
+
+MERGE = 4.0
+
+
+def mixture(rows):
+    """rows: (label, weight, x, y); pedestrian-sized, 5 cm position std."""
+    k = len(rows)
+    lab, w, x, y = (np.array(c) for c in zip(*rows))
+    m = np.column_stack([x, y, np.zeros(k), np.zeros(k)]).astype(float)
+    P = np.broadcast_to(np.diag([0.05 ** 2, 0.05 ** 2, 0.1, 0.1]), (k, 4, 4)).copy()
+    v = np.full(k, 20.0)
+    V = np.broadcast_to((20.0 - IW_OFFSET) * 0.2 ** 2 * np.eye(2), (k, 2, 2)).copy()
+    return Mixture(w.astype(float), np.full(k, 10.0), np.ones(k), m, P, v, V,
+                   lab.astype(np.int64))
+
+
+def weights_by_label(mix):
+    return {int(l): round(float(mix.w[mix.label == l].sum()), 6) for l in np.unique(mix.label)}
+
+
+def test_two_light_labels_on_one_spot_become_the_heavier_label():
+    mix = mixture([(29, 0.36, 0.56, -1.64), (30, 0.74, 0.55, -1.64), (30, 0.01, 0.60, -1.6)])
+    out, fused = _fuse_duplicate_labels(mix, MERGE, 1.5)
+    assert fused == 1
+    assert weights_by_label(out) == {30: 1.11}
+    # nothing else changes
+    assert np.array_equal(out.m, mix.m) and np.array_equal(out.w, mix.w)
+
+
+def test_two_tracked_objects_passing_close_keep_their_labels():
+    # one unit of weight each: two objects, even where their centres nearly meet
+    mix = mixture([(1, 1.0, 2.0, 0.0), (2, 0.98, 2.01, 0.0)])
+    out, fused = _fuse_duplicate_labels(mix, MERGE, 1.5)
+    assert fused == 0 and np.array_equal(out.label, mix.label)
+
+
+def test_light_labels_apart_keep_their_labels():
+    # 0.6 m apart: more than the two 0.2 m semi-axes together, the objects do not overlap
+    mix = mixture([(1, 0.5, 2.0, 0.0), (2, 0.4, 2.6, 0.0)])
+    out, fused = _fuse_duplicate_labels(mix, MERGE, 1.5)
+    assert fused == 0 and np.array_equal(out.label, mix.label)
+
+
+def test_the_weight_bound_is_kept_as_labels_are_absorbed_and_zero_disables():
+    # heaviest first: 0.7 absorbs 0.5 (1.2); 0.4 would make 1.6 > 1.5 and stays
+    mix = mixture([(1, 0.7, 1.0, 1.0), (2, 0.5, 1.0, 1.0), (3, 0.4, 1.0, 1.0)])
+    out, fused = _fuse_duplicate_labels(mix, MERGE, 1.5)
+    assert fused == 1 and weights_by_label(out) == {1: 1.2, 3: 0.4}
+    out, fused = _fuse_duplicate_labels(mix, MERGE, 0.0)
+    assert fused == 0 and np.array_equal(out.label, mix.label)
+
+
+@pytest.mark.parametrize('fuse', [0.0, 1.5])
+def test_one_object_ends_with_one_label(fuse):
+    """
+    A filter started with the same object under two labels (a birth that came out twice):
+    with fusion it reports one id for it, without it two labels follow it.
+    """
+    cfg = from_dict({'reduction': {'fuse_weight': fuse}})
+    rng = np.random.default_rng(3)
+    state = FilterState.initial(cfg)
+    start = mixture([(1, 0.55, 3.0, 0.0), (2, 0.5, 3.02, 0.01)])
+    from dataclasses import replace
+    state = replace(state, mixture=start, next_label=3)
+    for _ in range(10):
+        pts = np.array([3.0, 0.0]) + rng.normal(0, 0.12, (12, 2))
+        state, est, diag = filter_step(state, pts, 0.1, cfg)
+    labels = set(np.unique(state.mixture.label[state.mixture.w > 0.1]).tolist())
+    if fuse:
+        assert labels == {1}
+    else:
+        assert labels == {1, 2}
