@@ -163,10 +163,11 @@ def leave_one_out_sums(pre: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) ->
     return lse_last(pre[:k, :, :k] + g[1:, :, :k]).T
 
 
-def _gather(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """``table[idx]`` with out-of-range indices giving ``-inf``."""
-    ok = (idx >= 0) & (idx < len(table))
-    return np.where(ok, table[np.clip(idx, 0, len(table) - 1)], NEG_INF)
+def _inf_padded(table: np.ndarray, pad: int) -> np.ndarray:
+    """``table`` with ``pad`` entries of ``-inf`` on each side: ``out[i + pad]`` is
+    ``table[i]`` for ``i`` in range and ``-inf`` for ``-pad <= i < len(table) + pad``."""
+    edge = np.full(pad, NEG_INF)
+    return np.concatenate([edge, table, edge])
 
 
 def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
@@ -191,8 +192,11 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     S[pid[act], slot[act]] = la[act]
     pre = log_esf_prefixes(S)                           # e_r of the first t singletons
     r = np.arange(R + 1)
+    # the indices below run from -(R + 1) to k_most + R: out of range reads -inf
+    pad = R + 1
+    pc_pad, w1_pad = _inf_padded(log_pc_fact, pad), _inf_padded(W1, pad)
     # pc_r = (k1 - r)! p_c(k1 - r) e_r(a_S)
-    pc_r = _gather(log_pc_fact, k1[:, None] - r[None, :]) + pre[R]
+    pc_r = pc_pad[pad + k1[:, None] - r[None, :]] + pre[R]
     pc_r[~feasible] = NEG_INF
     col = np.minimum(k2[:, None] + r[None, :], k_most)
     lam = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
@@ -201,15 +205,15 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
     rows = feasible[pid] & ~single
     if np.any(rows):
-        u_ns = lse_rows(_gather(W1, k2[:, None] - 1 + r[None, :]) + pc_r)
+        u_ns = lse_rows(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
         pr = pid[rows]
         cells.append(flat[rows])
         vals.append(log_A[pr] - la[rows] + u_ns[pr])
     # W an active singleton: one singleton fewer, e_r of the others (leave one out)
     if R:
         r2 = r[:-1]
-        B = (_gather(W1, k2[:, None] + r2[None, :])
-             + _gather(log_pc_fact, k1[:, None] - 1 - r2[None, :]))
+        B = (w1_pad[pad + k2[:, None] + r2[None, :]]
+             + pc_pad[pad + k1[:, None] - 1 - r2[None, :]])
         B[r2[None, :] >= ka[:, None]] = NEG_INF
         u_s = log_A[:, None] + leave_one_out_sums(pre, S, B)
         cells.append(flat[act])
