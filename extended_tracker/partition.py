@@ -19,9 +19,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.cluster.hierarchy import linkage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import minimum_spanning_tree
-from scipy.cluster.hierarchy import linkage
 from scipy.spatial import cKDTree, Delaunay, QhullError
 from scipy.spatial.distance import pdist
 

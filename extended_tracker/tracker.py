@@ -290,6 +290,11 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     estimates : Estimates
     diagnostics : StepDiagnostics
 
+    Raises
+    ------
+    ValueError
+        If a detection is not finite (the pipeline's scan conversion never passes one).
+
     Notes
     -----
     The components of the update are the predicted mixture plus one row for the uniform
@@ -303,6 +308,12 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     mix = state.mixture
     n_comp = len(mix)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
+    if not np.isfinite(points).all():
+        # the pipeline's scan conversion masks and counts such beams; a direct caller
+        # gets told here rather than by whatever numeric routine meets them first
+        bad = int((~np.isfinite(points).all(axis=1)).sum())
+        raise ValueError(f'update_state: detections must be finite; {bad} of '
+                         f'{len(points)} rows are not')
     diag = StepDiagnostics(detections=len(points))
     R = sensor_noise(cfg)
     area = clutter_area if clutter_area else mc.surveillance_area

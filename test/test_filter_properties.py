@@ -244,3 +244,13 @@ def test_batched_merge_equals_per_group_reference(groups_of):
         assert np.isclose(out.v[k], v, rtol=1e-7)
         np.testing.assert_allclose(out.V[k], V, rtol=1e-7, atol=1e-12)
         assert np.isclose(out.w[k], mix.w[idx].sum(), rtol=1e-12)
+
+
+def test_non_finite_detections_are_refused_with_a_clear_error():
+    """The scan conversion masks bad beams; a direct caller of the core is told plainly."""
+    import pytest
+
+    state = FilterState.initial(CFG)
+    pts = np.array([[1.0, 2.0], [np.nan, 1.0], [1.05, np.inf]])
+    with pytest.raises(ValueError, match='2 of 3 rows'):
+        filter_step(state, pts, 0.1, CFG)
