@@ -553,33 +553,43 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     if not len(mix) or fuse_weight <= 0:
         return mix, 0
     order, is_head, group = mix.by_label()
-    heads = order[is_head]
-    if len(heads) < 2:
-        return mix, 0
+    if not group[-1]:
+        return mix, 0                                  # a single label
     weight = np.bincount(group, weights=mix.w[order])
+    # only labels light enough to pair with the lightest other one can take part
+    two = np.partition(weight, 1)[:2]
+    cand = np.flatnonzero(weight + np.where(weight == two[0], two[1], two[0]) <= fuse_weight)
+    if len(cand) < 2:
+        return mix, 0
+    heads = order[is_head][cand]
     c = mix.m[heads, :2]
-    inv_spread = inv2(mix.P[heads, :2, :2] + mix.expected_extent()[heads])
+    inv_spread = inv2(mix.P[heads, :2, :2]
+                      + mix.V[heads] / (mix.v[heads] - IW_OFFSET)[:, None, None])
     e = c[None, :, :] - c[:, None, :]                  # e[i, j] = c_j - c_i
     d2 = np.einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
     close = (np.maximum(d2, d2.T) <= merge_distance)
     np.fill_diagonal(close, False)
     if not close.any():
         return mix, 0
-    into = np.arange(len(heads))
-    total = weight.copy()
+    w = weight[cand]
+    into = np.arange(len(cand))
+    total = w.copy()
     # heaviest labels absorb first; a label absorbed cannot absorb others
-    for i in np.argsort(-weight, kind='stable').tolist():
+    for i in np.argsort(-w, kind='stable').tolist():
         if into[i] != i:
             continue
         for j in np.flatnonzero(close[i]).tolist():
-            if into[j] == j and weight[j] <= weight[i] and total[i] + total[j] <= fuse_weight:
+            if into[j] == j and w[j] <= w[i] and total[i] + total[j] <= fuse_weight:
                 into[j] = i
                 total[i] += total[j]
-    fused = int(np.sum(into != np.arange(len(heads))))
+    fused = int(np.sum(into != np.arange(len(cand))))
     if not fused:
         return mix, 0
+    target = np.arange(len(weight))
+    target[cand] = cand[into]
+    head_label = mix.label[order[is_head]]
     label = mix.label.copy()
-    label[order] = mix.label[heads][into[group]]
+    label[order] = head_label[target[group]]
     return replace(mix, label=label), fused
 
 
