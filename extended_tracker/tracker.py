@@ -420,7 +420,8 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
             scans[j] = old.reported_scans[i] + 1
             origin[j] = old.reported_origin[i]
             age[j] = old.reported_age[i] + new.dt
-    travel = np.linalg.norm(est.m[:, :2] - origin, axis=1)
+    d = est.m[:, :2] - origin
+    travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
     for j, lab in enumerate(est.label.tolist()):
         i = index.get(lab)
         if i is not None:
@@ -611,6 +612,8 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     d2 = np.einsum('ki,kij,kj->k', e, inv2(spread[head]), e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
+    if not far.any():
+        return mix, next_label
     heavy = far & (mix.w >= split_weight)
     label = mix.label.copy()
     # fresh labels in order of weight, as the objects they stand for are found
@@ -631,8 +634,12 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     mix = state.mixture
     if not len(mix):
         return Estimates.empty()
-    labels, inverse = np.unique(mix.label, return_inverse=True)
-    weight = np.bincount(inverse, weights=mix.w)
+    by_lab, is_head, group = mix.by_label()
+    heads = by_lab[is_head]                            # one per label, labels ascending
+    labels = mix.label[heads]
+    rank = np.empty(len(mix), dtype=np.int64)
+    rank[by_lab] = group                               # each component's label rank
+    weight = np.bincount(rank, weights=mix.w)          # summed in component order
     order = np.argsort(-weight, kind='stable')
     ex = cfg.extraction
     if cfg.model.mode == 'cphd':
@@ -644,10 +651,8 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     chosen = np.sort(labels[chosen])
     if not len(chosen):
         return Estimates.empty()
-    order, is_head, _ = mix.by_label()
-    heads = order[is_head]                             # one per label, labels ascending
-    best = heads[np.searchsorted(mix.label[heads], chosen)]
-    lab_w = weight[np.searchsorted(labels, chosen)]
+    at = np.searchsorted(labels, chosen)
+    best, lab_w = heads[at], weight[at]
     n_det = n_det or {}
     visibility = visibility or {}
     return Estimates(
@@ -655,7 +660,7 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
         existence=np.clip(lab_w, 0.0, 1.0),
         m=mix.m[best],
         P=mix.P[best],
-        X=mix.expected_extent()[best],
+        X=mix.V[best] / (mix.v[best] - IW_OFFSET)[:, None, None],
         rate=mix.expected_rate()[best],
         num_detections=np.array([n_det.get(int(x), 0) for x in chosen], dtype=np.int64),
         visibility=np.array([visibility.get(int(x), 1.0) for x in chosen]),
