@@ -15,6 +15,7 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 from scipy.special import gammaln
@@ -109,7 +110,14 @@ class Mixture:
         group : (n,) int array
             Over ``order``: the label's rank among the labels.
 
+        Computed once per mixture (the arrays are shared: read them, do not write them).
+        A step asks for it up to five times, often of the same mixture when fusion and
+        splitting change nothing.
         """
+        return self._by_label
+
+    @cached_property
+    def _by_label(self):
         order = np.lexsort((-self.w, self.label))
         lab = self.label[order]
         is_head = np.ones(len(order), dtype=bool)

@@ -519,7 +519,10 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     """Size of each label's heaviest detected cell, where detection outweighs a miss."""
     if not len(comp):
         return {}
-    labels, inv = np.unique(mix.label, return_inverse=True)
+    order, is_head, group = mix.by_label()             # shared with confident_predictions
+    labels = mix.label[order[is_head]]
+    inv = np.empty(len(mix), dtype=np.int64)
+    inv[order] = group                                 # each component's label rank
     pair_lab = inv[comp]
     detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
     missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
