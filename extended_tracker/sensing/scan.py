@@ -119,8 +119,16 @@ class ScanPoints:
         """
         order = np.argsort(self.angles, kind='stable')
         ang = self.angles[order]
-        step = float(np.median(np.diff(ang))) if len(ang) > 1 else 0.0
-        return order, ang, step
+        return order, ang, _median(np.diff(ang)) if len(ang) > 1 else 0.0
+
+
+def _median(x: np.ndarray) -> float:
+    """``np.median`` of a 1-D array (the same value) without its dispatch: the mean of the
+    middle one or two order statistics."""
+    k = len(x)
+    lo, hi = (k - 1) // 2, k // 2
+    part = np.partition(x, (lo, hi))
+    return float((part[lo] + part[hi]) / 2)
 
 
 def _finite(name, value):
