@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammaln
 
-from .logmath import logsumexp, lse1, lse_last, lse_rows
+from .logmath import logsumexp, lse1, lse_last
 
 NEG_INF = -np.inf
 # partitions are split into three batches by active singletons from these sizes on
@@ -200,12 +200,12 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     pc_r[~feasible] = NEG_INF
     col = np.minimum(k2[:, None] + r[None, :], k_most)
     lam = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
-    u0 = log_A + lse_rows(W1[col] + pc_r)
+    u0 = log_A + lse_last(W1[col] + pc_r)
     cells, vals = [], []
     # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
     rows = feasible[pid] & ~single
     if np.any(rows):
-        u_ns = lse_rows(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
+        u_ns = lse_last(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
         pr = pid[rows]
         cells.append(flat[rows])
         vals.append(log_A[pr] - la[rows] + u_ns[pr])
@@ -264,7 +264,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         log_q0 = lse1(log_w + log_qd) - log_nbar
     # log a_W = log(psi_W / c^W), psi_W = sum_i w_i g_iW / Nbar
     if n_comp:
-        log_psi = lse_rows((log_w[:, None] + log_g).T) - log_nbar
+        log_psi = lse_last((log_w[:, None] + log_g).T) - log_nbar
     else:
         log_psi = np.full(n_cells, NEG_INF)
     log_a = log_psi - cell_log_c
@@ -282,7 +282,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
 
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
-    W1 = lse_rows((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
+    W1 = lse_last((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
     n_part = len(partitions)
     lam_P = np.full((n_part, n_max + 1), NEG_INF)
     u0_terms = np.full(n_part, NEG_INF)
@@ -318,12 +318,12 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
                 k_most)
             np.logaddexp.at(log_u_cell, cells, vals)
 
-    per_partition = lse_rows(lam_P + log_card[None, :])
+    per_partition = lse_last(lam_P + log_card[None, :])
     log_L = lse1(per_partition)
     log_part_weight = per_partition - log_L
     log_u0 = lse1(u0_terms) - log_nbar - log_L
     log_u_cell = log_u_cell - log_nbar - log_L
-    log_card_post = log_card + lse_rows(lam_P.T) - log_L
+    log_card_post = log_card + lse_last(lam_P.T) - log_L
 
     log_w_missed = log_w + log_qd + log_u0
     log_w_det = log_w[:, None] + log_g - cell_log_c[None, :] + log_u_cell[None, :]
@@ -382,11 +382,11 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     """
     n_max = len(log_card) - 1
     surv = _log_thinning(n_max, float(p_survival)) + log_card[None, :]
-    log_surv = lse_rows(surv)
+    log_surv = lse_last(surv)
     log_birth = poisson_log_pmf(birth_mean, n_max)
     # convolution: out[n] = logsumexp_j surv[j] + birth[n - j]
     conv = np.where(_LOWER[n_max], log_surv[None, :] + log_birth[_DIFF[n_max]], NEG_INF)
-    out = lse_rows(conv)
+    out = lse_last(conv)
     return out - lse1(out)
 
 

@@ -38,14 +38,6 @@ def lse1(a: np.ndarray) -> float:
     return float(m + np.log(np.exp(a - m).sum()))
 
 
-def lse_rows(a: np.ndarray) -> np.ndarray:
-    """``logsumexp`` over the last axis of a 2-D float array (rows may be all ``-inf``)."""
-    m = a.max(axis=1)
-    safe = np.where(m == -np.inf, 0.0, m)
-    with np.errstate(divide='ignore'):
-        return safe + np.log(np.exp(a - safe[:, None]).sum(axis=1))
-
-
 def lse_last(a: np.ndarray) -> np.ndarray:
     """``logsumexp`` over the last axis of an N-d float array (slices may be all ``-inf``)."""
     m = a.max(axis=-1)

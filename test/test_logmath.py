@@ -4,7 +4,7 @@ from hypothesis import given, strategies as st
 import numpy as np
 from scipy.special import logsumexp as scipy_lse
 
-from extended_tracker.logmath import logsumexp, lse1, lse_rows
+from extended_tracker.logmath import logsumexp, lse1, lse_last
 
 values = st.lists(st.one_of(st.floats(-800, 800), st.just(-np.inf)), min_size=1, max_size=12)
 
@@ -18,7 +18,12 @@ def test_equal_to_scipy(rows):
         ref_cols = scipy_lse(a, axis=0)
         ref_all = scipy_lse(a)
     # rounding: both sum exp(a - max) in double precision
-    np.testing.assert_allclose(lse_rows(a), ref_rows, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(lse_last(a), ref_rows, rtol=1e-12, atol=1e-12)
+    # the last axis of a 3-d stack, as the batched CPHD update uses it
+    stack = np.stack([a, a[::-1]])
+    with np.errstate(divide='ignore'):
+        ref_stack = scipy_lse(stack, axis=-1)
+    np.testing.assert_allclose(lse_last(stack), ref_stack, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(logsumexp(a, axis=1), ref_rows, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(logsumexp(a, axis=0), ref_cols, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(logsumexp(a), ref_all, rtol=1e-12, atol=1e-12)
@@ -29,4 +34,5 @@ def test_empty_and_all_minus_infinity():
     assert lse1(np.zeros(0)) == -np.inf
     assert logsumexp(np.zeros(0)) == -np.inf
     assert lse1(np.full(3, -np.inf)) == -np.inf
-    assert np.all(lse_rows(np.full((2, 3), -np.inf)) == -np.inf)
+    assert np.all(lse_last(np.full((2, 3), -np.inf)) == -np.inf)
+    assert np.all(lse_last(np.full((2, 2, 3), -np.inf)) == -np.inf)
