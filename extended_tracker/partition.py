@@ -61,34 +61,8 @@ class PartitionSet:
         if len(self.partitions) >= max_partitions:
             self.capped_partitions += 1
             return False
-        order = np.argsort(labels, kind='stable')      # groups, each in ascending index
-        bounds = np.flatnonzero(np.diff(labels[order])) + 1
-        starts = np.concatenate([[0], bounds]).tolist()
-        ends = np.concatenate([bounds, [len(order)]]).tolist()
-        ids = []
-        new_cells = []
-        for a, b in zip(starts, ends):
-            group = order[a:b]                        # ascending: stable sort of labels
-            key = group.tobytes()                     # exact identity of the cell
-            found = self._index.get(key)
-            if found is None:
-                new_cells.append((key, group))
-                found = -len(new_cells)               # placeholder until accepted
-            ids.append(found)
-        sig = tuple(sorted(i for i in ids if i >= 0)) + (len(new_cells),)
-        if not new_cells and sig in self._seen:
-            return False
-        if len(self.cells) + len(new_cells) > max_cells:
-            self.capped_cells += len(new_cells)
-            return False
-        for j, (key, group) in enumerate(new_cells):
-            idx = len(self.cells)
-            self.cells.append(group)
-            self._index[key] = idx
-            ids[ids.index(-(j + 1))] = idx
-        self._seen.add(tuple(sorted(ids)) + (0,))
-        self.partitions.append(np.array(ids, dtype=np.int64))
-        return True
+        return self._commit([[g, self._index.get(g.tobytes())] for g in _groups(labels)],
+                            max_cells)
 
     def add_nested(self, partitions: list, max_partitions: int, max_cells: int) -> None:
         """
@@ -103,10 +77,7 @@ class PartitionSet:
         prev = None
         for labels in partitions:
             if prev is None:
-                order = np.argsort(labels, kind='stable')
-                bounds = np.flatnonzero(np.diff(labels[order])) + 1
-                groups = np.split(order, bounds)
-                current = {int(labels[g[0]]): [g, None] for g in groups}
+                current = {int(labels[g[0]]): [g, None] for g in _groups(labels)}
                 fresh = list(current)
             else:
                 moved = labels != prev
@@ -122,20 +93,34 @@ class PartitionSet:
             if len(self.partitions) >= max_partitions:
                 self.capped_partitions += 1
                 continue
-            ordered = [current[r] for r in sorted(current)]
-            new_cells = [e for e in ordered if e[1] is None]
-            if not new_cells and tuple(sorted(e[1] for e in ordered)) + (0,) in self._seen:
-                continue
-            if len(self.cells) + len(new_cells) > max_cells:
-                self.capped_cells += len(new_cells)
-                continue
-            for e in new_cells:
-                e[1] = len(self.cells)
-                self.cells.append(e[0])
-                self._index[e[0].tobytes()] = e[1]
-            ids = [e[1] for e in ordered]
-            self._seen.add(tuple(sorted(ids)) + (0,))
-            self.partitions.append(np.array(ids, dtype=np.int64))
+            self._commit([current[r] for r in sorted(current)], max_cells)
+
+    def _commit(self, entries: list, max_cells: int) -> bool:
+        """
+        Add the partition whose cells are ``entries`` (``[members, id]`` each, ``id`` None
+        for a cell not held yet) unless it is a duplicate or its new cells would pass the
+        cell cap; the new cells' ids are written into their entries.
+        """
+        new = [e for e in entries if e[1] is None]
+        if not new and tuple(sorted(e[1] for e in entries)) in self._seen:
+            return False
+        if len(self.cells) + len(new) > max_cells:
+            self.capped_cells += len(new)
+            return False
+        for e in new:
+            e[1] = len(self.cells)
+            self.cells.append(e[0])
+            self._index[e[0].tobytes()] = e[1]
+        ids = [e[1] for e in entries]
+        self._seen.add(tuple(sorted(ids)))
+        self.partitions.append(np.array(ids, dtype=np.int64))
+        return True
+
+
+def _groups(labels: np.ndarray) -> list:
+    """The cells of a label array: index arrays in ascending label order, each ascending."""
+    order = np.argsort(labels, kind='stable')
+    return np.split(order, np.flatnonzero(np.diff(labels[order])) + 1)
 
 
 LINKAGE_MAX = 1500      # up to this many detections: scipy's single linkage on all pairs
