@@ -88,9 +88,11 @@ class Mixture:
         return Mixture(*(np.concatenate([getattr(p, n) for p in parts])
                          for n in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label')))
 
-    def expected_extent(self) -> np.ndarray:
-        """Return ``E[X] = V / (v - 6)``, shape (n, 2, 2)."""
-        return self.V / (self.v - IW_OFFSET)[:, None, None]
+    def expected_extent(self, idx=None) -> np.ndarray:
+        """Return ``E[X] = V / (v - 6)``, shape (n, 2, 2), or of the components ``idx``."""
+        if idx is None:
+            return self.V / (self.v - IW_OFFSET)[:, None, None]
+        return self.V[idx] / (self.v[idx] - IW_OFFSET)[:, None, None]
 
     def expected_rate(self) -> np.ndarray:
         """Return ``E[gamma] = alpha / beta``, shape (n,)."""
@@ -115,6 +117,21 @@ class Mixture:
         splitting change nothing.
         """
         return self._by_label
+
+    def per_label(self):
+        """
+        ``(labels, rank, weight)``: the labels ascending, each component's index into
+        them, and each label's total weight (summed in component order). Computed once
+        per mixture, like :meth:`by_label`.
+        """
+        return self._per_label
+
+    @cached_property
+    def _per_label(self):
+        order, is_head, group = self.by_label()
+        rank = np.empty(len(order), dtype=np.int64)
+        rank[order] = group
+        return self.label[order[is_head]], rank, np.bincount(rank, weights=self.w)
 
     @cached_property
     def _by_label(self):

@@ -203,7 +203,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     Psi = np.add.reduceat((wn * nu_i)[:, None, None] * inv2(mix.V[idx]), starts)
     elog_x = np.add.reduceat(wn * (logdet_spd2(mix.V[idx]) - _iw_psi_sum(nu_i)), starts)
     target = elog_x + logdet_spd2(Psi)
-    mean_x = np.add.reduceat(wn[:, None, None] * mix.expected_extent()[idx], starts)
+    mean_x = np.add.reduceat(wn[:, None, None] * mix.expected_extent(idx), starts)
     iPsi = inv2(Psi)
     lo = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
     nu = _solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
@@ -248,15 +248,13 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     # Common case in one pass: every component of a label lies within the merge distance
     # of the label's heaviest component; only the other labels go through the greedy loop.
     order, first, gid = mix.by_label()
-    lab_sorted = mix.label[order]
     n_groups = int(gid[-1]) + 1
-    head = order[first][gid]                           # heaviest of each member's label
+    heads = order[first]
+    head = heads[gid]                                  # heaviest of each member's label
     e = mix.m[order, :2] - mix.m[head, :2]
-    Pi = inv2(mix.P[head, :2, :2])
-    d2 = np.einsum('ki,kij,kj->k', e, Pi, e)
+    d2 = np.einsum('ki,kij,kj->k', e, inv2(mix.P[heads, :2, :2])[gid], e)
     far_group = np.zeros(n_groups, dtype=bool)
     far_group[gid[d2 > merge_distance]] = True
-    far_labels = lab_sorted[first][far_group]
     size = np.bincount(gid, minlength=n_groups)
     # members under 1 % of the head's weight move it by less than that: their weight is
     # added to the head instead of a full moment match
@@ -269,9 +267,8 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     singles = [order[starts[single]]]
     multi = [order[starts[g]:starts[g] + size[g]] for g in np.flatnonzero(full).tolist()]
     absorbed = [order[starts[g]:starts[g] + size[g]] for g in np.flatnonzero(absorb).tolist()]
-    for lab in far_labels:
-        idx = np.flatnonzero(mix.label == lab)
-        remaining = idx[np.argsort(-mix.w[idx], kind='stable')]
+    for g in np.flatnonzero(far_group).tolist():
+        remaining = order[starts[g]:starts[g] + size[g]]    # heaviest first
         while len(remaining):
             j = remaining[0]
             e = mix.m[remaining, :2] - mix.m[j, :2]
@@ -281,8 +278,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
             remaining = remaining[~near]
     parts = [mix.take(np.concatenate(singles))]
     if absorbed:
-        heads = np.array([g[0] for g in absorbed])
-        parts.append(mix.take(heads).with_weights(
+        parts.append(mix.take(np.array([g[0] for g in absorbed])).with_weights(
             np.array([mix.w[g].sum() for g in absorbed])))
     if multi:
         parts.append(merge_groups(mix, multi))

@@ -217,8 +217,7 @@ def confident_predictions(mix: Mixture, cfg: TrackerConfig, min_weight: float = 
     best = best[mix.w[best] >= min_weight]
     if not len(best):
         return None
-    X = mix.expected_extent()[best]
-    G = mix.P[best, :2, :2] + X + sensor_noise(cfg)
+    G = mix.P[best, :2, :2] + mix.expected_extent(best) + sensor_noise(cfg)
     return {
         'centre': mix.m[best, :2],
         'gate_inv': inv2(G),
@@ -519,10 +518,7 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     """Size of each label's heaviest detected cell, where detection outweighs a miss."""
     if not len(comp):
         return {}
-    order, is_head, group = mix.by_label()             # shared with confident_predictions
-    labels = mix.label[order[is_head]]
-    inv = np.empty(len(mix), dtype=np.int64)
-    inv[order] = group                                 # each component's label rank
+    labels, inv, _ = mix.per_label()
     pair_lab = inv[comp]
     detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
     missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
@@ -531,6 +527,12 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     ok = detected[pair_lab[first]] > missed[pair_lab[first]]
     first = first[ok]
     return dict(zip(labels[pair_lab[first]].tolist(), stats.n[cell[first]].tolist()))
+
+
+def _spread_inv(mix: Mixture, idx) -> np.ndarray:
+    """Inverse of position covariance plus expected extent of components ``idx``: the
+    metric in which a label's members are near their head (splitting, fusion)."""
+    return inv2(mix.P[idx, :2, :2] + mix.expected_extent(idx))
 
 
 def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: float):
@@ -559,7 +561,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     order, is_head, group = mix.by_label()
     if not group[-1]:
         return mix, 0                                  # a single label
-    weight = np.bincount(group, weights=mix.w[order])
+    weight = mix.per_label()[2]
     # only labels light enough to pair with the lightest other one can take part
     two = np.partition(weight, 1)[:2]
     cand = np.flatnonzero(weight + np.where(weight == two[0], two[1], two[0]) <= fuse_weight)
@@ -567,8 +569,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         return mix, 0
     heads = order[is_head][cand]
     c = mix.m[heads, :2]
-    inv_spread = inv2(mix.P[heads, :2, :2]
-                      + mix.V[heads] / (mix.v[heads] - IW_OFFSET)[:, None, None])
+    inv_spread = _spread_inv(mix, heads)
     e = c[None, :, :] - c[:, None, :]                  # e[i, j] = c_j - c_i
     d2 = np.einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
     close = (np.maximum(d2, d2.T) <= merge_distance)
@@ -609,10 +610,9 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     if not len(mix):
         return mix, next_label
     order, is_head, group = mix.by_label()
-    head = order[is_head][group]                       # each member's label head
-    spread = mix.P[:, :2, :2] + mix.expected_extent()
-    e = mix.m[order, :2] - mix.m[head, :2]
-    d2 = np.einsum('ki,kij,kj->k', e, inv2(spread[head]), e)
+    heads = order[is_head]
+    e = mix.m[order, :2] - mix.m[heads[group], :2]
+    d2 = np.einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
     if not far.any():
@@ -637,12 +637,9 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     mix = state.mixture
     if not len(mix):
         return Estimates.empty()
-    by_lab, is_head, group = mix.by_label()
+    by_lab, is_head, _ = mix.by_label()
     heads = by_lab[is_head]                            # one per label, labels ascending
-    labels = mix.label[heads]
-    rank = np.empty(len(mix), dtype=np.int64)
-    rank[by_lab] = group                               # each component's label rank
-    weight = np.bincount(rank, weights=mix.w)          # summed in component order
+    labels, _, weight = mix.per_label()
     order = np.argsort(-weight, kind='stable')
     ex = cfg.extraction
     if cfg.model.mode == 'cphd':
@@ -663,7 +660,7 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
         existence=np.clip(lab_w, 0.0, 1.0),
         m=mix.m[best],
         P=mix.P[best],
-        X=mix.V[best] / (mix.v[best] - IW_OFFSET)[:, None, None],
+        X=mix.expected_extent(best),
         rate=mix.expected_rate()[best],
         num_detections=np.array([n_det.get(int(x), 0) for x in chosen], dtype=np.int64),
         visibility=np.array([visibility.get(int(x), 1.0) for x in chosen]),
