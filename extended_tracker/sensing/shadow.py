@@ -162,37 +162,35 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
         return Visibility(np.full(n, det.p_d0), ones, None)
     bearing, half, half_widened, r_near, r_far = _geometry(mix, det.widen_sigmas,
                                                           det.max_widen)
-    offset = None
+
+    def lookup(half_angle):
+        if det.model == 'scan_shadow':
+            return _visible_fraction(bearing, half_angle, r_near, scan, scan.ranges,
+                                     det.shadow_margin)
+        return _estimate_shadow(mix, bearing, half_angle, r_near, r_far, scan, det)
+
+    # p_D from the interval widened by the position uncertainty (capped); the centroid
+    # offset from the plain one
     widen = not with_offset or (det.max_widen > 0 and det.widen_sigmas > 0)
-    widened = (bearing, half_widened, r_near, r_far) if widen else None
-    if with_offset:
+    offset = None
+    if not with_offset:
+        visible, _ = lookup(half_widened)
+    else:
         if det.model == 'scan_shadow' and widen:
             # both intervals of every component in one lookup
             both, mean_free = _visible_fraction(
-                np.concatenate([bearing, widened[0]]), np.concatenate([half, widened[1]]),
-                np.concatenate([r_near, widened[2]]), scan, scan.ranges, det.shadow_margin)
-            visible, widened_visible, mean_free = both[:n], both[n:], mean_free[:n]
-        elif det.model == 'scan_shadow':
-            visible, mean_free = _visible_fraction(bearing, half, r_near, scan, scan.ranges,
-                                                   det.shadow_margin)
+                np.tile(bearing, 2), np.concatenate([half, half_widened]), np.tile(r_near, 2),
+                scan, scan.ranges, det.shadow_margin)
+            plain, visible, mean_free = both[:n], both[n:], mean_free[:n]
         else:
-            visible, mean_free = _estimate_shadow(mix, bearing, half, r_near, r_far, scan,
-                                                  det)
+            plain, mean_free = lookup(half)
+            visible = lookup(half_widened)[0] if widen else plain
         # The visible part's centroid sits at the mean unshadowed angle, on the object's
         # near range: an offset across the line of sight from the centre.
         r_c = np.hypot(mix.m[:, 0], mix.m[:, 1])
         across = np.column_stack([-np.sin(bearing), np.cos(bearing)])
-        shift = np.where((visible > 0) & (visible < 1), _wrap(mean_free - bearing) * r_c, 0.0)
+        shift = np.where((plain > 0) & (plain < 1), _wrap(mean_free - bearing) * r_c, 0.0)
         offset = across * shift[:, None]
-    # p_D from the interval widened by the position uncertainty (capped)
-    if widen:
-        bw, hw, rnw, rfw = widened
-        if det.model == 'scan_shadow' and with_offset:
-            visible = widened_visible
-        elif det.model == 'scan_shadow':
-            visible, _ = _visible_fraction(bw, hw, rnw, scan, scan.ranges, det.shadow_margin)
-        else:
-            visible, _ = _estimate_shadow(mix, bw, hw, rnw, rfw, scan, det)
     # wholly out of the field of view or beyond range: the object has left the scene
     step = abs(scan.angle_step)
     outside = ((r_near > scan.range_max) | (bearing + half < scan.angle_lo - step)
