@@ -34,6 +34,11 @@ def load_yaml(path) -> TrackerConfig:
     return from_dict(data)
 
 
+def _yaml_value(value) -> str:
+    """One value as inline YAML (as both generated files write it)."""
+    return yaml.safe_dump(value, default_flow_style=True).strip().removesuffix('...').strip()
+
+
 def dump_ros_yaml(cfg: TrackerConfig, node_name: str = '/**') -> str:
     """
     ``cfg`` as a ROS 2 parameters file (``/**: ros__parameters:``), one comment per field
@@ -50,8 +55,7 @@ def dump_ros_yaml(cfg: TrackerConfig, node_name: str = '/**') -> str:
         lines.append(f'    {section.name}:  # {doc}')
         for f in fields(sub):
             meta = f.metadata
-            value = yaml.safe_dump(getattr(sub, f.name), default_flow_style=True).strip()
-            value = value.removesuffix('...').strip()
+            value = _yaml_value(getattr(sub, f.name))
             rng = ''
             if meta.get('choices'):
                 rng = ' {' + ', '.join(meta['choices']) + '}'
@@ -100,8 +104,8 @@ def preset_yaml(name: str) -> str:
             value = getattr(getattr(cfg, section), key)
             old = getattr(getattr(base, section), key)
             unit = f' {meta[key]["unit"]}' if meta[key].get('unit') else ''
-            lines.append(f'      {key}: {value!r}  # {meta[key]["description"]} '
-                         f'(default {old!r}{unit})')
+            lines.append(f'      {key}: {_yaml_value(value)}  # {meta[key]["description"]} '
+                         f'(default {_yaml_value(old)}{unit})')
     return '\n'.join(lines) + '\n'
 
 
