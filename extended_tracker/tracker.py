@@ -391,8 +391,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     posterior = posterior.take(~oversized)
     reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
                                      cfg.reduction.max_components)
-    reduced, diag.fused_labels = _fuse_duplicate_labels(reduced, cfg.reduction.merge_distance,
-                                                        cfg.reduction.fuse_weight)
+    reduced, diag.fused_labels = _fuse_duplicate_labels(
+        reduced, cfg.reduction.merge_distance, cfg.reduction.fuse_weight, state.reported,
+        state.reported_scans)
     reduced, next_label = _split_labels(reduced, cfg.reduction.split_weight,
                                         cfg.reduction.merge_distance, next_label)
     diag.capped_components = capped
@@ -535,33 +536,41 @@ def _spread_inv(mix: Mixture, idx) -> np.ndarray:
     return inv2(mix.P[idx, :2, :2] + mix.expected_extent(idx))
 
 
-def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: float):
+def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: float,
+                           reported=None, reported_scans=None):
     """
     Give one label to labels that track the same object.
 
     Two labels whose heaviest components lie within the merge distance of each other
     (both ways, in the metric of :func:`_split_labels`: position covariance plus extent)
-    and whose weights sum to at most ``fuse_weight`` are one object seen twice: the
-    lighter label's components join the heavier label. With the default merge distance
-    the heads are then closer than about twice the extent's spread, where two objects
-    would overlap; and two *tracked* objects passing close (crossing, one behind the
-    other) carry about one unit of weight each, so they stay apart.
+    and whose weights sum to at most ``fuse_weight`` are one object seen twice. With the
+    default merge distance the heads are then closer than about twice the extent's
+    spread, where two objects would overlap; and two *tracked* objects passing close
+    (crossing, one behind the other) carry about one unit of weight each, so they stay
+    apart.
+
+    The label that stays is the senior one: reported in more consecutive scans
+    (``reported`` labels with their ``reported_scans``), then the older (smaller) label;
+    the other's components join it. The id a user sees is kept, whichever hypothesis is
+    heavier at that moment.
 
     Returns the mixture and the number of labels fused away.
 
     Notes
     -----
-    Seen on a real recording: one object born from two cells with no return in common
+    Seen on real recordings: one object born from two cells with no return in common
     (the halves of a sub-partition) got two labels; both then followed the whole object,
     splitting its weight (0.36 and 0.74), and a neighbour's label took it over when one
-    of them faded.
+    of them faded. On the leg_tracker demo a walker's fading track and a fresh birth on
+    the same legs were fused under the birth's label while the heavier label absorbed:
+    the walker changed id. Seniority keeps it.
     """
     if not len(mix) or fuse_weight <= 0:
         return mix, 0
     order, is_head, group = mix.by_label()
     if not group[-1]:
         return mix, 0                                  # a single label
-    weight = mix.per_label()[2]
+    labels, _, weight = mix.per_label()
     # only labels light enough to pair with the lightest other one can take part
     two = np.partition(weight, 1)[:2]
     cand = np.flatnonzero(weight + np.where(weight == two[0], two[1], two[0]) <= fuse_weight)
@@ -576,15 +585,25 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     np.fill_diagonal(close, False)
     if not close.any():
         return mix, 0
+    scans = np.zeros(len(cand), dtype=np.int64)
+    if reported is not None and len(reported):
+        at = np.searchsorted(labels, reported)
+        ok = (at < len(labels)) & (labels[np.minimum(at, len(labels) - 1)] == reported)
+        full = np.zeros(len(labels), dtype=np.int64)
+        full[at[ok]] = reported_scans[ok]
+        scans = full[cand]
+    # seniority: most scans reported, then the older label (cand is in label order)
+    senior = np.lexsort((np.arange(len(cand)), -scans))
+    rank = np.empty(len(cand), dtype=np.int64)
+    rank[senior] = np.arange(len(cand))
     w = weight[cand]
     into = np.arange(len(cand))
     total = w.copy()
-    # heaviest labels absorb first; a label absorbed cannot absorb others
-    for i in np.argsort(-w, kind='stable').tolist():
+    for i in senior.tolist():
         if into[i] != i:
-            continue
+            continue                                   # joined a more senior label
         for j in np.flatnonzero(close[i]).tolist():
-            if into[j] == j and w[j] <= w[i] and total[i] + total[j] <= fuse_weight:
+            if into[j] == j and rank[j] > rank[i] and total[i] + total[j] <= fuse_weight:
                 into[j] = i
                 total[i] += total[j]
     fused = int(np.sum(into != np.arange(len(cand))))
@@ -592,9 +611,8 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         return mix, 0
     target = np.arange(len(weight))
     target[cand] = cand[into]
-    head_label = mix.label[order[is_head]]
     label = mix.label.copy()
-    label[order] = head_label[target[group]]
+    label[order] = labels[target[group]]
     return replace(mix, label=label), fused
 
 

@@ -31,13 +31,20 @@ def weights_by_label(mix):
     return {int(l): round(float(mix.w[mix.label == l].sum()), 6) for l in np.unique(mix.label)}
 
 
-def test_two_light_labels_on_one_spot_become_the_heavier_label():
+def test_two_light_labels_on_one_spot_become_the_senior_label():
     mix = mixture([(29, 0.36, 0.56, -1.64), (30, 0.74, 0.55, -1.64), (30, 0.01, 0.60, -1.6)])
+    # neither reported yet: the older label stays, though lighter
     out, fused = _fuse_duplicate_labels(mix, MERGE, 1.5)
     assert fused == 1
-    assert weights_by_label(out) == {30: 1.11}
+    assert weights_by_label(out) == {29: 1.11}
     # nothing else changes
     assert np.array_equal(out.m, mix.m) and np.array_equal(out.w, mix.w)
+    # the id a user has been shown stays: the label reported in more scans in a row
+    out, _ = _fuse_duplicate_labels(mix, MERGE, 1.5, np.array([30]), np.array([4]))
+    assert weights_by_label(out) == {30: 1.11}
+    out, _ = _fuse_duplicate_labels(mix, MERGE, 1.5, np.array([7, 29, 30]),
+                                    np.array([9, 6, 2]))
+    assert weights_by_label(out) == {29: 1.11}
 
 
 def test_two_tracked_objects_passing_close_keep_their_labels():
@@ -83,3 +90,23 @@ def test_one_object_ends_with_one_label(fuse):
         assert labels == {1}
     else:
         assert labels == {1, 2}
+
+
+def test_a_shown_id_survives_a_heavier_fresh_label_on_the_same_object():
+    """
+    A walker's track has faded (0.3) while a fresh label (0.8) took its returns: after the
+    step the walker keeps the id it was shown under.
+    """
+    from dataclasses import replace
+
+    cfg = from_dict({})
+    rng = np.random.default_rng(4)
+    state = replace(FilterState.initial(cfg),
+                    mixture=mixture([(7, 0.3, 3.0, 0.0), (12, 0.8, 3.01, 0.0)]),
+                    next_label=13, reported=np.array([7]), reported_scans=np.array([25]),
+                    reported_origin=np.array([[1.0, 0.0]]), reported_travel=np.array([2.0]),
+                    reported_age=np.array([2.5]))
+    pts = np.array([3.0, 0.0]) + rng.normal(0, 0.12, (12, 2))
+    state, est, diag = filter_step(state, pts, 0.1, cfg)
+    assert diag.fused_labels == 1
+    assert est.label.tolist() == [7]
