@@ -284,6 +284,12 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
     return out, dropped
 
 
+def _sums_by(labels: np.ndarray, points: np.ndarray, n: int) -> np.ndarray:
+    """(n, 2) sums of the points of each label ``0..n-1``."""
+    return np.column_stack([np.bincount(labels, weights=points[:, 0], minlength=n),
+                            np.bincount(labels, weights=points[:, 1], minlength=n)])
+
+
 def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
               init: np.ndarray | None = None) -> np.ndarray:
     """
@@ -315,8 +321,7 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
         labels = new
         # each centre moves to the mean of its points; an empty cluster's centre stays
         count = np.bincount(labels, minlength=len(centres))
-        sums = np.column_stack([np.bincount(labels, weights=points[:, 0], minlength=len(centres)),
-                                np.bincount(labels, weights=points[:, 1], minlength=len(centres))])
+        sums = _sums_by(labels, points, len(centres))
         filled = count > 0
         centres[filled] = sums[filled] / count[filled, None]
     return labels
@@ -411,9 +416,7 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     if not len(labels):
         return
     counts = counts_all[labels]
-    zbar = np.column_stack([np.bincount(base, weights=points[:, 0], minlength=len(points)),
-                            np.bincount(base, weights=points[:, 1],
-                                        minlength=len(points))])[labels] / counts[:, None]
+    zbar = _sums_by(base, points, len(points))[labels] / counts[:, None]
     big = np.ones(len(labels), dtype=bool)
     centre = predicted['centre']
     Gi = predicted['gate_inv']

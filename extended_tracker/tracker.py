@@ -374,7 +374,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     w_birth = np.exp(out.log_w_detected[n_comp, :])
     bsel = np.flatnonzero(w_birth >= cfg.birth.min_weight)
     born, next_label = _label_births(pset, bsel, state.next_label,
-                                     *_cell_claims(mix.label[comp], cell, w_det, n_cells),
+                                     *_cell_claims(mix, comp, cell, w_det, n_cells),
                                      w_birth)
     births = bupd.take(bsel).mixture(w_birth[bsel], born)
     diag.births = len(np.unique(born))
@@ -463,17 +463,18 @@ def gate_threshold(cfg: TrackerConfig) -> float:
     return float(-2.0 * np.log1p(-cfg.partition.gate_probability))
 
 
-def _cell_claims(pair_label, pair_cell, w_det, n_cells):
+def _cell_claims(mix: Mixture, comp, cell, w_det, n_cells):
     """
-    The label with the most detected weight on each cell, and that weight (0 if none).
+    The label with the most detected weight on each cell, and that weight (0 if none),
+    from the (component, cell) pairs.
     """
     claim = np.zeros(n_cells, dtype=np.int64)
     weight = np.zeros(n_cells)
-    if not len(pair_cell):
+    if not len(cell):
         return claim, weight
-    labels, inv = np.unique(pair_label, return_inverse=True)
+    labels, rank, _ = mix.per_label()
     per = np.zeros((len(labels), n_cells))
-    np.add.at(per, (inv, pair_cell), w_det)
+    np.add.at(per, (rank[comp], cell), w_det)
     best = np.argmax(per, axis=0)
     return labels[best], per[best, np.arange(n_cells)]
 
