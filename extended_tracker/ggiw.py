@@ -25,6 +25,13 @@ IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
 H_IDX = (0, 1)            # position entries of the kinematic state [px, py, vx, vy]
 
 
+def read_only(*arrays):
+    """The arrays, marked read-only: cached results shared by every caller."""
+    for a in arrays:
+        a.flags.writeable = False
+    return arrays
+
+
 @dataclass(frozen=True)
 class Mixture:
     """
@@ -112,7 +119,7 @@ class Mixture:
         group : (n,) int array
             Over ``order``: the label's rank among the labels.
 
-        Computed once per mixture (the arrays are shared: read them, do not write them).
+        Computed once per mixture; the arrays are shared, so they are read-only.
         A step asks for it up to five times, often of the same mixture when fusion and
         splitting change nothing.
         """
@@ -131,7 +138,7 @@ class Mixture:
         order, is_head, group = self.by_label()
         rank = np.empty(len(order), dtype=np.int64)
         rank[order] = group
-        return self.label[order[is_head]], rank, np.bincount(rank, weights=self.w)
+        return read_only(self.label[order[is_head]], rank, np.bincount(rank, weights=self.w))
 
     @cached_property
     def _by_label(self):
@@ -139,7 +146,7 @@ class Mixture:
         lab = self.label[order]
         is_head = np.ones(len(order), dtype=bool)
         is_head[1:] = lab[1:] != lab[:-1]
-        return order, is_head, np.cumsum(is_head) - 1
+        return read_only(order, is_head, np.cumsum(is_head) - 1)
 
 
 # --- closed-form 2x2 symmetric positive definite helpers (batched over leading axes) ---

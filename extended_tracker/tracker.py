@@ -18,7 +18,7 @@ from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
     cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
-    update_pairs,
+    read_only, update_pairs,
 )
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
@@ -68,9 +68,10 @@ class Estimates:
     @cached_property
     def _axes(self):
         # computed once per scan's estimates, read by messages, markers, shapes and plots
+        # (shared, so read-only)
         lam1, lam2 = eig2(self.X)
         yaw = 0.5 * np.arctan2(2 * self.X[:, 0, 1], self.X[:, 0, 0] - self.X[:, 1, 1])
-        return np.sqrt(lam1), np.sqrt(np.maximum(lam2, 0.0)), yaw
+        return read_only(np.sqrt(lam1), np.sqrt(np.maximum(lam2, 0.0)), yaw)
 
     def rectangle(self):
         """
