@@ -46,7 +46,6 @@ class PartitionSet:
     partitions: list = field(default_factory=list)
     capped_partitions: int = 0
     capped_cells: int = 0
-    coarse_labels: np.ndarray | None = None
     _index: dict = field(default_factory=dict)
     _seen: set = field(default_factory=set)
 
@@ -376,7 +375,6 @@ def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> 
         return pset
     dist, dropped = distance_partitions(points, cfg.d_min, cfg.d_max, cfg.max_partitions)
     pset.capped_partitions += dropped
-    pset.coarse_labels = dist[-1]
     # prediction partitioning first: under a cap it is the most informative one
     pred_labels = None
     if cfg.prediction_partition and predicted is not None and len(predicted['centre']):
