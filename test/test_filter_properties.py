@@ -185,6 +185,22 @@ def _sparse_merges(pts, d_max, delaunay):
         P.LINKAGE_MAX, P.DENSE_PAIRS_PER_POINT = saved
 
 
+@given(point_sets(max_n=90))
+def test_single_linkage_equals_scipys_public_call(pts):
+    """
+    The partitioning's single linkage (scipy's C routine called without the wrapper)
+    equals ``linkage(y, 'single')`` exactly: the shortcut must not change a single merge.
+    """
+    from scipy.cluster.hierarchy import linkage
+    from scipy.spatial.distance import pdist
+
+    import extended_tracker.partition as P
+
+    y = pdist(pts)
+    if len(pts) >= 2:
+        assert np.array_equal(P.single_linkage(y, len(pts)), linkage(y, method='single'))
+
+
 @given(point_sets(max_n=90), st.floats(0.05, 1.5), st.booleans())
 def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     """
