@@ -40,7 +40,11 @@ def lse1(a: np.ndarray) -> float:
 
 def lse_last(a: np.ndarray) -> np.ndarray:
     """``logsumexp`` over the last axis of an N-d float array (slices may be all ``-inf``)."""
-    m = a.max(axis=-1)
-    safe = np.where(m == -np.inf, 0.0, m)
-    with np.errstate(divide='ignore'):
-        return safe + np.log(np.exp(a - safe[..., None]).sum(axis=-1))
+    # an all -inf slice is shifted by the lowest finite double instead of its max (exp
+    # gives 0 either way) and its log(0) is never evaluated: no errstate (2 us) per call
+    safe = np.maximum(np.maximum.reduce(a, axis=-1), _LOWEST)
+    s = np.add.reduce(np.exp(a - safe[..., None]), axis=-1)
+    return safe + np.log(s, out=np.full(s.shape, -np.inf), where=s > 0)
+
+
+_LOWEST = np.finfo(float).min

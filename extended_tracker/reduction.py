@@ -80,18 +80,19 @@ def _solve_nu(target, lo, hi, start, iters=60):
     f_hi, _ = f(hi)
     nu = np.clip(start, lo, hi)
     a, b = lo.copy(), hi.copy()
-    for _ in range(iters):
-        val, x = f(nu)
-        a = np.where(val > 0, nu, a)                   # the root is above nu
-        b = np.where(val > 0, b, nu)
-        fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
-        with np.errstate(divide='ignore', invalid='ignore'):
+    with np.errstate(divide='ignore', invalid='ignore'):     # fp = 0: bisection takes over
+        for _ in range(iters):
+            val, x = f(nu)
+            above = val > 0                            # the root is above nu
+            a = np.where(above, nu, a)
+            b = np.where(above, b, nu)
+            fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
             nxt = nu - val / fp
-        nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
-        done = np.all(np.abs(nxt - nu) <= 1e-10 * nu)
-        nu = nxt
-        if done:
-            break
+            nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
+            done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
+            nu = nxt
+            if done:
+                break
     return np.where(f_lo <= 0, lo, np.where(f_hi >= 0, hi, nu))
 
 
@@ -195,7 +196,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     for _ in range(20):
         step = (np.log(a) - digamma(a) - c) / (1 / a - _trigamma(a))
         a = np.where(a - step > 0, a - step, a / 2)
-        if np.all(np.abs(step) <= 1e-10 * a):
+        if (np.abs(step) <= 1e-10 * a).all():
             break
     b = a / mean
     # inverse Wishart
@@ -242,7 +243,8 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
 
     """
     keep = mix.w >= prune_weight
-    mix = mix.take(keep)
+    if not keep.all():
+        mix = mix.take(keep)
     if not len(mix):
         return mix, 0
     # Common case in one pass: every component of a label lies within the merge distance

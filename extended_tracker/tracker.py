@@ -161,8 +161,32 @@ class StepDiagnostics:
 
 
 def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
-    """Sensor noise covariance R (m^2)."""
-    return cfg.model.sigma_range ** 2 * np.eye(2)
+    """Sensor noise covariance R (m^2), read-only."""
+    sigma = cfg.model.sigma_range
+    R = _NOISE.get(sigma)
+    if R is None:
+        R, = read_only(sigma ** 2 * np.eye(2))
+        _NOISE[sigma] = R
+    return R
+
+
+_NOISE: dict = {}          # sigma_range -> R: one or two configurations per process
+
+
+def _clutter_log_pmf(rate: float, n_max: int) -> np.ndarray:
+    """Poisson clutter cardinality pmf (log) at ``0..n_max``, read-only: asked for on every
+    scan with the same few arguments."""
+    key = (rate, n_max)
+    pmf = _CLUTTER.get(key)
+    if pmf is None:
+        pmf, = read_only(poisson_log_pmf(rate, n_max))
+        if len(_CLUTTER) > 256:
+            _CLUTTER.clear()
+        _CLUTTER[key] = pmf
+    return pmf
+
+
+_CLUTTER: dict = {}
 
 
 def region_births(cfg: TrackerConfig, first_label: int) -> Mixture:
@@ -343,8 +367,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     upd, bupd = upd_all.take(slice(0, k)), upd_all.take(slice(k, None))
     p_d_pair = p_d[comp] if pair_p_d is None else pair_p_d(mix, comp, upd.m, upd.P)
     keep = p_d_pair > 0
-    comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
-    upd = upd.take(keep)
+    if not keep.all():                 # 8 gathers saved on most scans
+        comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
+        upd = upd.take(keep)
     diag.pairs = len(comp)
     log_pd0 = np.log(cfg.detection.p_d0)
 
@@ -361,7 +386,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     if mc.mode == 'cphd':
         k_most = max((len(p) for p in pset.partitions), default=0)
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
-                          state.log_card, poisson_log_pmf(mc.clutter_rate, k_most + 1))
+                          state.log_card, _clutter_log_pmf(mc.clutter_rate, k_most + 1))
     else:
         out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
                          mc.clutter_rate, mc.n_max)
@@ -378,7 +403,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                      *_cell_claims(mix, comp, cell, w_det, n_cells),
                                      w_birth)
     births = bupd.take(bsel).mixture(w_birth[bsel], born)
-    diag.births = len(np.unique(born))
+    diag.births = len(set(born.tolist()))
     posterior = Mixture.concat([mix.with_weights(w_missed), detected, births])
 
     n_det = _detections_per_label(mix, comp, cell, w_det, w_missed, stats)
@@ -389,7 +414,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     oversized = _implausible(posterior, cfg)
     diag.oversized = int(oversized.sum())
-    posterior = posterior.take(~oversized)
+    if diag.oversized:
+        posterior = posterior.take(~oversized)
     reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
                                      cfg.reduction.max_components)
     reduced, diag.fused_labels = _fuse_duplicate_labels(
