@@ -383,11 +383,24 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     n_max = len(log_card) - 1
     surv = _log_thinning(n_max, float(p_survival)) + log_card[None, :]
     log_surv = lse_last(surv)
-    log_birth = poisson_log_pmf(birth_mean, n_max)
     # convolution: out[n] = logsumexp_j surv[j] + birth[n - j]
-    conv = np.where(_LOWER[n_max], log_surv[None, :] + log_birth[_DIFF[n_max]], NEG_INF)
-    out = lse_last(conv)
+    out = lse_last(log_surv[None, :] + _birth_matrix(n_max, float(birth_mean)))
     return out - lse1(out)
+
+
+def _birth_matrix(n_max: int, birth_mean: float) -> np.ndarray:
+    """``log p_B(n - j)`` as an (n, j) matrix, ``-inf`` above the diagonal; cached per
+    (N_max, birth mean), which is constant while the scan period is."""
+    key = (n_max, birth_mean)
+    hit = _BIRTH_CACHE.get(key)
+    if hit is None:
+        log_birth = poisson_log_pmf(birth_mean, n_max)
+        hit = np.where(_LOWER[n_max], log_birth[_DIFF[n_max]], NEG_INF)
+        hit.flags.writeable = False
+        if len(_BIRTH_CACHE) > 64:
+            _BIRTH_CACHE.clear()
+        _BIRTH_CACHE[key] = hit
+    return hit
 
 
 def _log_thinning(n_max: int, p_s: float) -> np.ndarray:
@@ -429,5 +442,6 @@ class _Tri(dict):
 
 
 _THIN_CACHE: dict = {}
+_BIRTH_CACHE: dict = {}
 _LOWER = _Tri('lower')
 _DIFF = _Tri('diff')

@@ -229,7 +229,8 @@ def log_gamma2(a):
 
 def cv_matrices(dt: float, sigma_accel: float):
     """
-    Constant-velocity transition ``F`` and process noise ``Q`` for a step of ``dt`` s.
+    Constant-velocity transition ``F`` and process noise ``Q`` for a step of ``dt`` s
+    (cached per step and noise, read-only).
 
     Notes
     -----
@@ -237,13 +238,23 @@ def cv_matrices(dt: float, sigma_accel: float):
     ``G = [dt^2/2 I; dt I]``.
 
     """
+    key = (dt, sigma_accel)
+    hit = _CV.get(key)
+    if hit is not None:
+        return hit
     F = np.eye(4)
     F[0, 2] = F[1, 3] = dt
     g = np.array([0.5 * dt * dt, 0.5 * dt * dt, dt, dt])
     Q = np.zeros((4, 4))
     for i, j in ((0, 0), (1, 1), (2, 2), (3, 3), (0, 2), (2, 0), (1, 3), (3, 1)):
         Q[i, j] = g[i] * g[j]
-    return F, sigma_accel ** 2 * Q
+    if len(_CV) > 256:                 # scan periods jitter in recordings
+        _CV.clear()
+    _CV[key] = read_only(F, sigma_accel ** 2 * Q)
+    return _CV[key]
+
+
+_CV: dict = {}
 
 
 def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_rate: float,

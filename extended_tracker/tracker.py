@@ -191,6 +191,8 @@ _CLUTTER: dict = {}
 
 def region_births(cfg: TrackerConfig, first_label: int) -> Mixture:
     """Birth components of the configured birth regions (x, y, std triples)."""
+    if not len(cfg.birth.regions):
+        return Mixture.empty()
     reg = np.asarray(cfg.birth.regions, dtype=float).reshape(-1, 3)
     k = len(reg)
     if not k:
