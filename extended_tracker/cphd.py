@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammaln
 
+from .ggiw import cached_tables
 from .logmath import logsumexp, lse1, lse_last
 
 NEG_INF = -np.inf
@@ -76,24 +77,22 @@ def _log_factorial(k: int) -> np.ndarray:
 
 
 _LF = gammaln(np.arange(256) + 1.0)
-_FALLING: dict = {}
+
+
+@cached_tables(maxsize=256)
+def _log_falling(n_max: int, j_max: int):
+    """``log(n!/(n-j)!)`` (``-inf`` for ``j > n``) and ``max(n - j, 0)`` as (n, j) tables."""
+    n = np.arange(n_max + 1)[:, None]
+    j = np.arange(j_max + 1)[None, :]
+    lf = _log_factorial(n_max + 1)
+    valid = j <= n
+    nj = np.where(valid, n - j, 0)
+    return np.where(valid, lf[n] - lf[nj], NEG_INF), nj
 
 
 def _log_lambda_table(log_q0: float, n_max: int, j_max: int) -> np.ndarray:
     """``T[n, j] = log(n!/(n-j)!) + (n-j) log q0`` for ``j <= n``, else ``-inf``."""
-    key = (n_max, j_max)
-    base = _FALLING.get(key)
-    if base is None:
-        n = np.arange(n_max + 1)[:, None]
-        j = np.arange(j_max + 1)[None, :]
-        lf = _log_factorial(n_max + 1)
-        valid = j <= n
-        nj = np.where(valid, n - j, 0)
-        base = (np.where(valid, lf[n] - lf[nj], NEG_INF), nj)
-        if len(_FALLING) > 256:
-            _FALLING.clear()
-        _FALLING[key] = base
-    falling, nj = base
+    falling, nj = _log_falling(n_max, j_max)
     if log_q0 == NEG_INF:
         # 0 * log q0 must be 0 even when q0 = 0
         return np.where(nj > 0, NEG_INF, falling)
@@ -388,27 +387,19 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     return out - lse1(out)
 
 
+@cached_tables(maxsize=64)
 def _birth_matrix(n_max: int, birth_mean: float) -> np.ndarray:
     """``log p_B(n - j)`` as an (n, j) matrix, ``-inf`` above the diagonal; cached per
     (N_max, birth mean), which is constant while the scan period is."""
-    key = (n_max, birth_mean)
-    hit = _BIRTH_CACHE.get(key)
-    if hit is None:
-        log_birth = poisson_log_pmf(birth_mean, n_max)
-        hit = np.where(_LOWER[n_max], log_birth[_DIFF[n_max]], NEG_INF)
-        hit.flags.writeable = False
-        if len(_BIRTH_CACHE) > 64:
-            _BIRTH_CACHE.clear()
-        _BIRTH_CACHE[key] = hit
-    return hit
+    n = np.arange(n_max + 1)
+    diff = n[:, None] - n[None, :]
+    log_birth = poisson_log_pmf(birth_mean, n_max)
+    return np.where(diff >= 0, log_birth[np.clip(diff, 0, None)], NEG_INF)
 
 
+@cached_tables(maxsize=64)
 def _log_thinning(n_max: int, p_s: float) -> np.ndarray:
     """``log C(l, j) p_S^j (1 - p_S)^(l - j)`` as a (j, l) matrix, cached per (N_max, p_S)."""
-    key = (n_max, p_s)
-    hit = _THIN_CACHE.get(key)
-    if hit is not None:
-        return hit
     lf = gammaln(np.arange(n_max + 1) + 1)
     j = np.arange(n_max + 1)[:, None]
     l_ = np.arange(n_max + 1)[None, :]
@@ -419,29 +410,4 @@ def _log_thinning(n_max: int, p_s: float) -> np.ndarray:
         log_ps = np.log(p_s)
         log_qs = np.log1p(-p_s) if p_s < 1 else NEG_INF
         term = np.where(j > 0, j * log_ps, 0.0) + np.where(lj > 0, lj * log_qs, 0.0)
-    mat = np.where(valid, log_comb + term, NEG_INF)
-    if len(_THIN_CACHE) > 64:
-        _THIN_CACHE.clear()
-    _THIN_CACHE[key] = mat
-    return mat
-
-
-class _Tri(dict):
-    """Per-N_max index helpers of the birth convolution (built on first use)."""
-
-    def __init__(self, kind):
-        super().__init__()
-        self.kind = kind
-
-    def __missing__(self, n_max):
-        n = np.arange(n_max + 1)
-        diff = n[:, None] - n[None, :]
-        value = diff >= 0 if self.kind == 'lower' else np.clip(diff, 0, None)
-        self[n_max] = value
-        return value
-
-
-_THIN_CACHE: dict = {}
-_BIRTH_CACHE: dict = {}
-_LOWER = _Tri('lower')
-_DIFF = _Tri('diff')
+    return np.where(valid, log_comb + term, NEG_INF)

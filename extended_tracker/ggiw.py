@@ -15,7 +15,7 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, lru_cache, wraps
 
 import numpy as np
 from scipy.special import gammaln
@@ -30,6 +30,23 @@ def read_only(*arrays):
     for a in arrays:
         a.flags.writeable = False
     return arrays
+
+
+def cached_tables(maxsize: int):
+    """
+    Memoise a function of a few hashable scalars (sizes, rates, a scan period) that
+    returns an array or a tuple of arrays, keeping the ``maxsize`` most recent results.
+
+    The results are shared by every caller, so they are returned read-only.
+    """
+    def decorate(fn):
+        @lru_cache(maxsize=maxsize)
+        @wraps(fn)
+        def cached(*args):
+            out = fn(*args)
+            return read_only(*out) if isinstance(out, tuple) else read_only(out)[0]
+        return cached
+    return decorate
 
 
 @dataclass(frozen=True)
@@ -227,6 +244,7 @@ def log_gamma2(a):
 
 # --- prediction (section 2) ---
 
+@cached_tables(maxsize=256)        # scan periods jitter in recordings
 def cv_matrices(dt: float, sigma_accel: float):
     """
     Constant-velocity transition ``F`` and process noise ``Q`` for a step of ``dt`` s
@@ -238,23 +256,13 @@ def cv_matrices(dt: float, sigma_accel: float):
     ``G = [dt^2/2 I; dt I]``.
 
     """
-    key = (dt, sigma_accel)
-    hit = _CV.get(key)
-    if hit is not None:
-        return hit
     F = np.eye(4)
     F[0, 2] = F[1, 3] = dt
     g = np.array([0.5 * dt * dt, 0.5 * dt * dt, dt, dt])
     Q = np.zeros((4, 4))
     for i, j in ((0, 0), (1, 1), (2, 2), (3, 3), (0, 2), (2, 0), (1, 3), (3, 1)):
         Q[i, j] = g[i] * g[j]
-    if len(_CV) > 256:                 # scan periods jitter in recordings
-        _CV.clear()
-    _CV[key] = read_only(F, sigma_accel ** 2 * Q)
-    return _CV[key]
-
-
-_CV: dict = {}
+    return F, sigma_accel ** 2 * Q
 
 
 def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_rate: float,

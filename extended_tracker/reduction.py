@@ -80,19 +80,19 @@ def _solve_nu(target, lo, hi, start, iters=60):
     f_hi, _ = f(hi)
     nu = np.clip(start, lo, hi)
     a, b = lo.copy(), hi.copy()
-    with np.errstate(divide='ignore', invalid='ignore'):     # fp = 0: bisection takes over
-        for _ in range(iters):
-            val, x = f(nu)
-            above = val > 0                            # the root is above nu
-            a = np.where(above, nu, a)
-            b = np.where(above, b, nu)
-            fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
+    for _ in range(iters):
+        val, x = f(nu)
+        above = val > 0                                # the root is above nu
+        a = np.where(above, nu, a)
+        b = np.where(above, b, nu)
+        fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
+        with np.errstate(divide='ignore', invalid='ignore'):    # fp = 0: bisection below
             nxt = nu - val / fp
-            nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
-            done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
-            nu = nxt
-            if done:
-                break
+        nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
+        done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
+        nu = nxt
+        if done:
+            break
     return np.where(f_lo <= 0, lo, np.where(f_hi >= 0, hi, nu))
 
 

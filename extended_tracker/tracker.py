@@ -17,8 +17,8 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
-    cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
-    read_only, update_pairs,
+    cached_tables, cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture,
+    predict, read_only, update_pairs,
 )
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
@@ -162,41 +162,26 @@ class StepDiagnostics:
 
 def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
     """Sensor noise covariance R (m^2), read-only."""
-    sigma = cfg.model.sigma_range
-    R = _NOISE.get(sigma)
-    if R is None:
-        R, = read_only(sigma ** 2 * np.eye(2))
-        _NOISE[sigma] = R
-    return R
+    return _noise(cfg.model.sigma_range)
 
 
-_NOISE: dict = {}          # sigma_range -> R: one or two configurations per process
+@cached_tables(maxsize=8)
+def _noise(sigma_range: float) -> np.ndarray:
+    """``sigma_range^2 I``."""
+    return sigma_range ** 2 * np.eye(2)
 
 
-def _clutter_log_pmf(rate: float, n_max: int) -> np.ndarray:
-    """Poisson clutter cardinality pmf (log) at ``0..n_max``, read-only: asked for on every
-    scan with the same few arguments."""
-    key = (rate, n_max)
-    pmf = _CLUTTER.get(key)
-    if pmf is None:
-        pmf, = read_only(poisson_log_pmf(rate, n_max))
-        if len(_CLUTTER) > 256:
-            _CLUTTER.clear()
-        _CLUTTER[key] = pmf
-    return pmf
-
-
-_CLUTTER: dict = {}
+# the Poisson clutter cardinality pmf (log): asked for on every scan with the same few
+# (rate, size) arguments
+_clutter_log_pmf = cached_tables(maxsize=256)(poisson_log_pmf)
 
 
 def region_births(cfg: TrackerConfig, first_label: int) -> Mixture:
     """Birth components of the configured birth regions (x, y, std triples)."""
     if not len(cfg.birth.regions):
-        return Mixture.empty()
+        return Mixture.empty()                  # the default: no array work on each scan
     reg = np.asarray(cfg.birth.regions, dtype=float).reshape(-1, 3)
     k = len(reg)
-    if not k:
-        return Mixture.empty()
     b = cfg.birth
     P = np.zeros((k, 4, 4))
     P[:, 0, 0] = P[:, 1, 1] = reg[:, 2] ** 2

@@ -241,3 +241,18 @@ def test_closed_form_eigenvalues_and_outlines():
         e = xy - [1.0, -2.0]
         q = np.einsum('ki,ij,kj->k', e, np.linalg.inv(X[j]), e)
         np.testing.assert_allclose(q, 1.0, rtol=1e-8)
+
+
+def test_cached_tables_are_shared_read_only_and_equal_a_fresh_computation():
+    """The memoised tables (CV matrices here) are one read-only object per argument tuple,
+    with the values the undecorated function computes."""
+    from extended_tracker.ggiw import cv_matrices
+
+    F, Q = cv_matrices(0.1, 0.7)
+    again = cv_matrices(0.1, 0.7)
+    assert again[0] is F and again[1] is Q
+    assert not F.flags.writeable and not Q.flags.writeable
+    fresh = cv_matrices.__wrapped__.__wrapped__(0.1, 0.7)     # lru_cache, then the wrapper
+    np.testing.assert_array_equal(F, fresh[0])
+    np.testing.assert_array_equal(Q, fresh[1])
+    assert fresh[0].flags.writeable
