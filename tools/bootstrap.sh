@@ -36,8 +36,8 @@ newer() {  # newer STAMP FILE...: true when STAMP is missing or older than a FIL
 # The ROS wheels are cp311, and the message build needs the interpreter's headers. Among
 # the 3.11 interpreters that have them, the distribution's comes first: its executable has
 # the interpreter linked in, where a --enable-shared build (pyenv's, for one) calls it
-# through libpython.so; the filter step ran ~10 % faster on it (README, Performance).
-# PYTHON=... overrides the choice.
+# through libpython.so; the filter step ran 8-10 % faster on it (README, Performance).
+# PYTHON=... overrides the choice; BOOTSTRAP_PYTHONS="a b ..." replaces the candidates (tests).
 usable() {
   "$1" -c 'import ensurepip, os, sys, sysconfig, venv
 sys.exit(sys.version_info[:2] != (3, 11)
@@ -45,13 +45,17 @@ sys.exit(sys.version_info[:2] != (3, 11)
     2>/dev/null
 }
 if [ -z "$python" ]; then
-  for candidate in /usr/bin/python3.11 python3.11 python3; do
+  for candidate in ${BOOTSTRAP_PYTHONS:-/usr/bin/python3.11 python3.11 python3}; do
     if command -v "$candidate" >/dev/null && usable "$candidate"; then
       python=$candidate
       break
     fi
   done
-  python=${python:-python3}
+  if [ -z "$python" ] && [ ! -x "$venv/bin/python" ]; then
+    log 'no Python 3.11 with its headers (python3.11-dev) and venv/ensurepip found;' \
+        'install one or name it with PYTHON=/path/to/python3.11'
+    exit 1
+  fi
 fi
 
 if [ ! -x "$venv/bin/python" ]; then
