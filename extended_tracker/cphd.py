@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import gammaln
 
-from .ggiw import cached_tables
+from .memo import cached_tables
 from .logmath import logsumexp, lse1, lse_last
 
 NEG_INF = -np.inf

@@ -15,38 +15,16 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import cached_property, lru_cache, wraps
+from functools import cached_property
 
 import numpy as np
 from scipy.special import gammaln
 
+from .memo import cached_tables, read_only
+
 D = 2                     # extent dimension
 IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
 H_IDX = (0, 1)            # position entries of the kinematic state [px, py, vx, vy]
-
-
-def read_only(*arrays):
-    """The arrays, marked read-only: cached results shared by every caller."""
-    for a in arrays:
-        a.flags.writeable = False
-    return arrays
-
-
-def cached_tables(maxsize: int):
-    """
-    Memoise a function of a few hashable scalars (sizes, rates, a scan period) that
-    returns an array or a tuple of arrays, keeping the ``maxsize`` most recent results.
-
-    The results are shared by every caller, so they are returned read-only.
-    """
-    def decorate(fn):
-        @lru_cache(maxsize=maxsize)
-        @wraps(fn)
-        def cached(*args):
-            out = fn(*args)
-            return read_only(*out) if isinstance(out, tuple) else read_only(out)[0]
-        return cached
-    return decorate
 
 
 @dataclass(frozen=True)

@@ -17,9 +17,10 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
-    cached_tables, cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture,
-    predict, read_only, update_pairs,
+    cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
+    update_pairs,
 )
+from .memo import cached_tables, read_only
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
 
