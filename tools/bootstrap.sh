@@ -44,21 +44,21 @@ sys.exit(sys.version_info[:2] != (3, 11)
          or not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
     2>/dev/null
 }
-if [ -z "$python" ]; then
-  for candidate in ${BOOTSTRAP_PYTHONS:-/usr/bin/python3.11 python3.11 python3}; do
-    if command -v "$candidate" >/dev/null && usable "$candidate"; then
-      python=$candidate
-      break
-    fi
-  done
-  if [ -z "$python" ] && [ ! -x "$venv/bin/python" ]; then
-    log 'no Python 3.11 with its headers (python3.11-dev) and venv/ensurepip found;' \
-        'install one or name it with PYTHON=/path/to/python3.11'
-    exit 1
-  fi
-fi
-
 if [ ! -x "$venv/bin/python" ]; then
+  # an existing venv is kept: the interpreter is chosen only when one is made
+  if [ -z "$python" ]; then
+    for candidate in ${BOOTSTRAP_PYTHONS:-/usr/bin/python3.11 python3.11 python3}; do
+      if command -v "$candidate" >/dev/null && usable "$candidate"; then
+        python=$candidate
+        break
+      fi
+    done
+    if [ -z "$python" ]; then
+      log 'no Python 3.11 with its headers (python3.11-dev) and venv/ensurepip found;' \
+          'install one or name it with PYTHON=/path/to/python3.11'
+      exit 1
+    fi
+  fi
   log "creating venv at $venv with $python ($("$python" -c 'import sys; print(sys.version.split()[0])'))"
   "$python" -m venv "$venv"
 fi
