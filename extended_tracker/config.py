@@ -140,6 +140,11 @@ class ExtractionConfig:
     phd_threshold: float = _f(0.5, 'phd mode reports labels heavier than this', '', 0.0, 1.0)
     confirm_scans: int = _f(3, 'scans in a row a label must be extracted before it is reported',
                             '', 1, 1000)
+    max_speed: float = _f(15.0, 'a report farther than max_speed times the time since its id '
+                          'was last shown (plus jump_slack) is a new object: it gets a new id',
+                          'm/s', 0.0, 1000.0, lo_open=True)
+    jump_slack: float = _f(1.0, 'allowance on top of max_speed for the spread of an estimate '
+                           'between partial views', 'm', 0.0, 100.0)
     rectangle_length: float = _f(1.2, 'objects longer than this are drawn as rectangles', 'm',
                                  0.0, 100.0)
     rectangle_elongation: float = _f(2.5, 'or more elongated than this (semi-axes ratio) and '
@@ -337,7 +342,10 @@ PRESETS: dict[str, dict] = {
     # still splits a cell that predicted objects say holds two people). A larger
     # sigma_accel (5) followed the legs' jumping centroid but let coasting tracks grow
     # metres of position uncertainty and claim newcomers far away: left at the default.
-    'leg_height': {'partition': {'d_min': 0.45}},
+    # Such a scanner sees people only, so an id may move at walking speed, not a car's:
+    # max_speed 3 m/s gives a new id where a coasting track took over a newcomer 4-9 m
+    # away (leg_tracker positive_1 and demo recordings).
+    'leg_height': {'partition': {'d_min': 0.45}, 'extraction': {'max_speed': 3.0}},
 }
 
 

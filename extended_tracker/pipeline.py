@@ -102,7 +102,8 @@ def _diag_template():
     d = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
          'partitions': 0, 'cells': 0, 'pairs': 0,
          'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
-         'capped_components': 0, 'oversized': 0, 'fused_labels': 0, 'beams': 0}
+         'capped_components': 0, 'oversized': 0, 'fused_labels': 0, 'relabelled': 0,
+         'beams': 0}
     d.update({f'masked_{k}': 0 for k in INVALID_KINDS})
     return d
 
@@ -133,8 +134,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     ``detections`` (valid returns), ``background_dropped``, ``partitions``, ``cells``,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,
     ``capped_components``, ``oversized`` (components dropped as too large or too
-    uncertain) and ``fused_labels`` (labels found to track an object another label
-    tracks).
+    uncertain), ``fused_labels`` (labels found to track an object another label
+    tracks) and ``relabelled`` (labels given a new id because they jumped farther than
+    ``extraction.max_speed`` allows).
     """
     t0 = time.perf_counter()
     try:
@@ -221,7 +223,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
         visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d)
     for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
-              'capped_cells', 'capped_components', 'oversized', 'fused_labels'):
+              'capped_cells', 'capped_components', 'oversized', 'fused_labels', 'relabelled'):
         diag[k] = getattr(fdiag, k)
     new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,
                         frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
