@@ -477,14 +477,23 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
 
 def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> FilterState:
     """Where and how long ago each label still in the mixture was last shown."""
-    alive = np.unique(new.mixture.label)
-    keep = np.isin(old.shown, alive) & ~np.isin(old.shown, shown.label)
+    alive = new.mixture.per_label()[0]                 # ascending, cached by extract
+    keep = _member(old.shown, alive) & ~_member(old.shown, shown.label)
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     elapsed = np.concatenate([old.shown_elapsed[keep] + new.dt, np.zeros(len(shown))])
     order = np.argsort(label, kind='stable')
     return replace(new, shown=label[order], shown_pos=pos[order],
                    shown_elapsed=elapsed[order])
+
+
+def _member(a: np.ndarray, ascending: np.ndarray) -> np.ndarray:
+    """Which of ``a`` are in the ascending array ``ascending`` (``np.isin`` without its
+    sort, for the few labels of a scan)."""
+    if not len(ascending):
+        return np.zeros(len(a), dtype=bool)
+    at = np.minimum(np.searchsorted(ascending, a), len(ascending) - 1)
+    return ascending[at] == a
 
 
 def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
