@@ -449,8 +449,8 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
 
     Notes
     -----
-    Seen on the leg_tracker positive_1 recording: ids that jumped 4.2 m in 0.67 s and
-    8.6 m in 1.5 s onto people who had just entered.
+    Seen on the leg_tracker positive_1 recording: ids that jumped 4.2 m in 0.4 s and
+    8.6 m in 1.2 s (since last shown) onto people who had just entered.
     """
     if not len(old.shown) or not len(est):
         return new, est, 0
