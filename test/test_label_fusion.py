@@ -9,22 +9,11 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.ggiw import IW_OFFSET, Mixture
 from extended_tracker.tracker import _fuse_duplicate_labels, FilterState, filter_step
 
+from mixtures import pedestrians as mixture
+
 MERGE = 4.0
-
-
-def mixture(rows):
-    """rows: (label, weight, x, y); pedestrian-sized, 5 cm position std."""
-    k = len(rows)
-    lab, w, x, y = (np.array(c) for c in zip(*rows))
-    m = np.column_stack([x, y, np.zeros(k), np.zeros(k)]).astype(float)
-    P = np.broadcast_to(np.diag([0.05 ** 2, 0.05 ** 2, 0.1, 0.1]), (k, 4, 4)).copy()
-    v = np.full(k, 20.0)
-    V = np.broadcast_to((20.0 - IW_OFFSET) * 0.2 ** 2 * np.eye(2), (k, 2, 2)).copy()
-    return Mixture(w.astype(float), np.full(k, 10.0), np.ones(k), m, P, v, V,
-                   lab.astype(np.int64))
 
 
 def weights_by_label(mix):
