@@ -454,8 +454,7 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     """
     if not len(old.shown) or not len(est):
         return new, est, 0
-    at = np.minimum(np.searchsorted(old.shown, est.label), len(old.shown) - 1)
-    known = old.shown[at] == est.label
+    at, known = _find_sorted(old.shown, est.label)
     d = est.m[:, :2] - old.shown_pos[at]
     reach = cfg.extraction.max_speed * (old.shown_elapsed[at] + new.dt)
     jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1))
@@ -466,8 +465,8 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     fresh = new.next_label + np.arange(len(bad))
     mix = new.mixture
     label = mix.label.copy()
-    hit = np.isin(label, bad)
-    label[hit] = fresh[np.searchsorted(bad, label[hit])]     # est.label is ascending
+    at, hit = _find_sorted(bad, label)                   # est.label is ascending
+    label[hit] = fresh[at[hit]]
     est_label = est.label.copy()
     est_label[jumped] = fresh
     return (replace(new, mixture=replace(mix, label=label),
@@ -478,7 +477,7 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
 def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> FilterState:
     """Where and how long ago each label still in the mixture was last shown."""
     alive = new.mixture.per_label()[0]                 # ascending, cached by extract
-    keep = _member(old.shown, alive) & ~_member(old.shown, shown.label)
+    keep = _find_sorted(alive, old.shown)[1] & ~_find_sorted(shown.label, old.shown)[1]
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     elapsed = np.concatenate([old.shown_elapsed[keep] + new.dt, np.zeros(len(shown))])
@@ -487,13 +486,16 @@ def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> Fil
                    shown_elapsed=elapsed[order])
 
 
-def _member(a: np.ndarray, ascending: np.ndarray) -> np.ndarray:
-    """Which of ``a`` are in the ascending array ``ascending`` (``np.isin`` without its
-    sort, for the few labels of a scan)."""
+def _find_sorted(ascending: np.ndarray, a: np.ndarray):
+    """
+    ``(at, found)``: where each of ``a`` is in the ascending array ``ascending`` and
+    whether it is there at all (``at`` is a valid index either way). For the few labels
+    of a scan: ``np.isin`` would sort both arrays again.
+    """
     if not len(ascending):
-        return np.zeros(len(a), dtype=bool)
+        return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
     at = np.minimum(np.searchsorted(ascending, a), len(ascending) - 1)
-    return ascending[at] == a
+    return at, ascending[at] == a
 
 
 def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
@@ -677,8 +679,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         return mix, 0
     scans = np.zeros(len(cand), dtype=np.int64)
     if reported is not None and len(reported):
-        at = np.searchsorted(labels, reported)
-        ok = (at < len(labels)) & (labels[np.minimum(at, len(labels) - 1)] == reported)
+        at, ok = _find_sorted(labels, reported)
         full = np.zeros(len(labels), dtype=np.int64)
         full[at[ok]] = reported_scans[ok]
         scans = full[cand]
