@@ -2,12 +2,14 @@
 Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
 
 - filter: one full filter step (partition, predict, update, reduce, extract) on the
-  returns of simulated scans of N pedestrians, against N and the detections;
+  returns of simulated scans of N pedestrians, against N and the detections; N = 0 (no
+  returns, no tracks) is the fixed cost of the chain that every scan pays;
 - pipeline: ``pipeline.step`` on the scenario scans S1 (tutorial-like, 361 beams, four
   pedestrians), S2 (1081 beams / 270 deg, a car, two bicycles, seven pedestrians, 3
   clutter returns) and S3 (1081 beams, 40 objects, 20 clutter returns), with the caps
   that bit;
-- memory: resident memory over many scans (``--memory N``).
+- memory: resident memory over many scans (``--memory N``);
+- profile: where the time of the 4-pedestrian filter step goes (``--profile``).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 from .config import from_dict
 from .pipeline import PipelineState, step
 from .sensing.scan import scan_to_points
-from .sim.laser import crowd_scene, mixed_traffic_scene, simulate, tutorial_scene
+from .sim.laser import crowd_scene, mixed_traffic_scene, Scene, simulate, tutorial_scene
 from .tracker import FilterState, filter_step
 
 
@@ -51,13 +53,10 @@ def bench_filter(counts, scans, warm=10, run_scans=60, beams=361, fov_deg=180.0)
     rows = []
     for n in counts:
         times, dets, cells, parts = [], [], [], []
-        for rep in range(max(1, scans // run_scans)):
-            seed = 1000 * n + rep
-            data = simulate(crowd_scene(n, seed=seed, beams=beams, fov_deg=fov_deg),
-                            (run_scans + warm) / 10.0, seed=seed)
+        for pts in _pedestrian_runs(n, max(1, scans // run_scans), run_scans, warm, beams,
+                                    fov_deg):
             state = FilterState.initial(cfg)
-            for k, (scan, _) in enumerate(data):
-                sp = scan_to_points(scan)
+            for k, sp in enumerate(pts):
                 p = sp.points
                 t0 = time.perf_counter()
                 state, est, diag = filter_step(state, p, 0.1, cfg, clutter_area=sp.area)
@@ -72,6 +71,47 @@ def bench_filter(counts, scans, warm=10, run_scans=60, beams=361, fov_deg=180.0)
         print(f'{n:8d} {np.mean(dets):10.0f} {np.mean(cells):6.0f} {np.mean(parts):10.1f} '
               f'{med:9.2f} {p99:7.2f}')
     return rows
+
+
+def _pedestrian_runs(n, runs, run_scans, warm=10, beams=361, fov_deg=180.0):
+    """The returns (and clutter areas) of ``runs`` simulated runs of ``n`` pedestrians."""
+    out = []
+    for rep in range(runs):
+        seed = 1000 * n + rep
+        data = simulate(crowd_scene(n, seed=seed, beams=beams, fov_deg=fov_deg),
+                        (run_scans + warm) / 10.0, seed=seed)
+        out.append([scan_to_points(scan) for scan, _ in data])
+    return out
+
+
+def bench_profile(n=4, runs=5, run_scans=60, top=25):
+    """
+    cProfile of the filter step on ``n`` pedestrians: the functions by cumulative time.
+
+    Profiling adds a fixed cost per Python call (the step runs about 1.4 times slower),
+    so read the shares, not the milliseconds.
+    """
+    import cProfile
+    import pstats
+
+    cfg = from_dict({'background': {'enabled': False}})
+    runs_pts = _pedestrian_runs(n, runs, run_scans)
+
+    def replay_all():
+        for pts in runs_pts:
+            state = FilterState.initial(cfg)
+            for sp in pts:
+                state, _, _ = filter_step(state, sp.points, 0.1, cfg, clutter_area=sp.area)
+
+    replay_all()                                      # warm the caches first
+    prof = cProfile.Profile()
+    prof.enable()
+    replay_all()
+    prof.disable()
+    steps = sum(len(p) for p in runs_pts)
+    print(f'\nprofile of the filter step, {n} pedestrians, {steps} steps '
+          f'(cumulative time per function; under the profiler)')
+    pstats.Stats(prof).sort_stats('cumulative').print_stats(r'extended_tracker', top)
 
 
 def bench_pipeline(scans):
@@ -193,9 +233,14 @@ def main(argv=None) -> int:
     p.add_argument('--quick', action='store_true', help='fewer scans per case')
     p.add_argument('--memory', type=int, default=0, help='also run N scans for memory')
     p.add_argument('--png', default='out/bench/scaling.png', help='scaling curves PNG')
+    p.add_argument('--profile', action='store_true',
+                   help='only profile the 4-pedestrian filter step (cProfile, by function)')
     args = p.parse_args(argv)
+    if args.profile:
+        bench_profile()
+        return 0
     scans = 60 if args.quick else 300
-    bench_filter([1, 2, 4, 10, 20, 50], scans)
+    bench_filter([0, 1, 2, 4, 10, 20, 50], scans)
     print()
     # the issue's second target case: 10 objects with ~250 returns (a finer, wider scan)
     bench_filter([10], scans, beams=1081, fov_deg=270.0)

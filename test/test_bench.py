@@ -1,0 +1,21 @@
+"""The benchmark script's own output (figures are printed, never asserted)."""
+
+from extended_tracker.bench import bench_filter, bench_profile
+
+
+def test_empty_scan_row_is_the_fixed_cost(capsys):
+    """N = 0 runs the chain on scans with no returns and no tracks: one (empty) partition."""
+    rows = bench_filter([0], scans=12, warm=2, run_scans=12)
+    (n, detections, cells, median_ms), = rows
+    assert (n, detections, cells) == (0, 0, 0)
+    assert median_ms > 0
+    assert '       0          0      0        1.0' in capsys.readouterr().out
+
+
+def test_profile_names_the_stages(capsys):
+    bench_profile(n=4, runs=1, run_scans=12, top=40)
+    out = capsys.readouterr().out
+    assert '4 pedestrians, 22 steps' in out
+    for stage in ('update_state', 'build_partitions', 'cphd_update', 'update_pairs',
+                  'reduce_mixture', 'predict_state', 'extract'):
+        assert f'({stage})' in out, stage
