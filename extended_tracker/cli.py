@@ -7,7 +7,7 @@
     extended-tracker real [--data DIR] [--out DIR] [--config YAML]
     extended-tracker evaluate OUTPUT_BAG --truth TRUTH [--plot PNG]
     extended-tracker results [--readme README.md]
-    extended-tracker bench [--quick] [--memory N]
+    extended-tracker bench [--quick] [--memory N] [--png PNG] [--profile]
 """
 
 from __future__ import annotations
@@ -144,10 +144,8 @@ def cmd_results(args) -> int:
 def cmd_bench(args) -> int:
     from .bench import main as bench_main
 
-    argv = ['--quick'] if args.quick else []
-    if args.memory:
-        argv += ['--memory', str(args.memory)]
-    return bench_main(argv)
+    # the benchmark parses its own options (``bench --help`` lists them): one definition
+    return bench_main(args.passed_on)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -188,15 +186,19 @@ def build_parser() -> argparse.ArgumentParser:
     res = sub.add_parser('results', help='run the scenario suite (CPHD/PHD x p_D models)')
     res.add_argument('--readme', help='write the table into this README between markers')
     res.set_defaults(func=cmd_results)
-    b = sub.add_parser('bench', help='print per-scan timing figures')
-    b.add_argument('--quick', action='store_true')
-    b.add_argument('--memory', type=int, default=0, help='also N scans for resident memory')
+    # add_help=False: bench's options, --help included, go to the benchmark's own parser
+    b = sub.add_parser('bench', add_help=False,
+                       help='print per-scan timing figures (bench --help for its options)')
     b.set_defaults(func=cmd_bench)
     return p
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.func is not cmd_bench:
+        parser.error(f'unrecognized arguments: {" ".join(extra)}')
+    args.passed_on = extra
     try:
         return args.func(args)
     except ExtendedTrackerError as err:

@@ -1,5 +1,7 @@
 """The benchmark script's own output (figures are printed, never asserted)."""
 
+import pytest
+
 from extended_tracker.bench import bench_filter, bench_profile
 
 
@@ -19,3 +21,34 @@ def test_profile_names_the_stages(capsys):
     for stage in ('update_state', 'build_partitions', 'cphd_update', 'update_pairs',
                   'reduce_mixture', 'predict_state', 'extract'):
         assert f'({stage})' in out, stage
+
+
+def test_cli_passes_the_bench_options_on(monkeypatch):
+    """`extended-tracker bench ...` hands every option to the benchmark's own parser."""
+    import extended_tracker.bench as bench
+    from extended_tracker import cli
+
+    seen = []
+    monkeypatch.setattr(bench, 'main', lambda argv: seen.append(argv) or 0)
+    assert cli.main(['bench', '--quick', '--memory', '7', '--profile']) == 0
+    assert seen == [['--quick', '--memory', '7', '--profile']]
+
+
+def test_bench_help_lists_its_own_options(capsys):
+    from extended_tracker import cli
+
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['bench', '--help'])
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    for option in ('--quick', '--memory', '--png', '--profile'):
+        assert option in out, option
+
+
+def test_other_commands_still_refuse_unknown_options(capsys):
+    from extended_tracker import cli
+
+    with pytest.raises(SystemExit) as exc:
+        cli.main(['results', '--bogus'])
+    assert exc.value.code == 2
+    assert 'unrecognized arguments: --bogus' in capsys.readouterr().err
