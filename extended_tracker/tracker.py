@@ -444,8 +444,8 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     6 m/s). The estimate stays where the filter put it, under a fresh label that must
     be confirmed like any new object, and the old id is not reused.
 
-    Returns the state (mixture relabelled, ``next_label`` advanced), the estimates and
-    the number of labels changed.
+    Returns the state (mixture relabelled, ``next_label`` advanced), the estimates (still
+    in ascending label order) and the number of labels changed.
 
     Notes
     -----
@@ -469,9 +469,12 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     label[hit] = fresh[at[hit]]
     est_label = est.label.copy()
     est_label[jumped] = fresh
+    # the fresh labels are the largest: move them to the end, so the estimates stay in
+    # ascending label order as extract gives them (the shown record searches them)
+    order = np.argsort(est_label, kind='stable')
     return (replace(new, mixture=replace(mix, label=label),
                     next_label=new.next_label + len(bad)),
-            replace(est, label=est_label), len(bad))
+            replace(est, label=est_label).take(order), len(bad))
 
 
 def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> FilterState:

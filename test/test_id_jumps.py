@@ -122,3 +122,22 @@ def test_a_walker_back_on_its_path_keeps_its_id():
     runs = _occlusion_then_newcomer(3.0, None, gap=8)
     assert sum(r for _, _, r in runs) == 0
     assert runs[29][0] == [1] and runs[-1][0] == [1]
+
+
+def test_relabelled_estimates_stay_in_label_order_for_the_shown_record():
+    # confirm_scans 1: a relabelled id is shown in the same scan. The fresh label is the
+    # largest, so a jump of label 4 beside label 9 must not leave the estimates as [13, 9]:
+    # the shown record looks labels up in them as a sorted array and would keep label 9
+    # twice, once at its stale position.
+    cfg = from_dict({'extraction': {'max_speed': 1.0, 'jump_slack': 0.0, 'confirm_scans': 1}})
+    old = FilterState(Mixture.empty(), np.zeros(1), shown=np.array([4, 9]),
+                      shown_pos=np.array([[0.0, 0.0], [0.0, 3.0]]), shown_elapsed=np.zeros(2))
+    new = FilterState(mixture([(4, 1.0, 5.0, 0.0), (9, 1.0, 0.0, 3.05)]), np.zeros(1),
+                      next_label=13, dt=0.1)
+    out, est, n = _relabel_jumps(old, new, estimates([4, 9], [[5.0, 0.0], [0.0, 3.05]]), cfg)
+    assert n == 1
+    assert est.label.tolist() == [9, 13]
+    np.testing.assert_allclose(est.m[:, :2], [[0.0, 3.05], [5.0, 0.0]])
+    shown = _remember_shown(old, out, est)
+    assert shown.shown.tolist() == [9, 13]
+    np.testing.assert_allclose(shown.shown_pos, [[0.0, 3.05], [5.0, 0.0]])
