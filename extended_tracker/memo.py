@@ -21,7 +21,8 @@ def cached_tables(maxsize: int):
     Memoise a function of a few hashable scalars (sizes, rates, a scan period) that
     returns an array or a tuple of arrays, keeping the ``maxsize`` most recent results.
 
-    The results are shared by every caller, so they are returned read-only.
+    The results are shared by every caller, so they are returned read-only;
+    ``.uncached`` is the plain function (fresh, writable arrays), for comparison.
     """
     def decorate(fn):
         @lru_cache(maxsize=maxsize)
@@ -29,5 +30,6 @@ def cached_tables(maxsize: int):
         def cached(*args):
             out = fn(*args)
             return read_only(*out) if isinstance(out, tuple) else read_only(out)[0]
+        cached.uncached = fn
         return cached
     return decorate
