@@ -17,6 +17,7 @@ spanning tree of the radius-``d_max`` graph, so all partitions come from one MST
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from scipy.cluster.hierarchy import linkage
@@ -93,7 +94,7 @@ class PartitionSet:
                     del current[r]                    # absorbed into a smaller label
                 fresh = sorted(set(labels[moved].tolist()))
                 for r in fresh:
-                    current[r] = [np.flatnonzero(labels == r), None]
+                    current[r] = [(labels == r).nonzero()[0], None]
             prev = labels
             for r in fresh:
                 entry = current[r]
@@ -128,7 +129,7 @@ class PartitionSet:
 def _groups(labels: np.ndarray) -> list:
     """The cells of a label array: index arrays in ascending label order, each ascending."""
     order = np.argsort(labels, kind='stable')
-    cuts = [0, *(np.flatnonzero(np.diff(labels[order])) + 1).tolist(), len(order)]
+    cuts = [0, *(np.diff(labels[order]).nonzero()[0] + 1).tolist(), len(order)]
     # slices, not np.split: its per-piece Python wrapper cost 20 us per partition
     return [order[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
 
@@ -141,6 +142,36 @@ def single_linkage(y: np.ndarray, n: int) -> np.ndarray:
 
 
 LINKAGE_MAX = 1500      # up to this many detections: scipy's single linkage on all pairs
+PAIR_INDEX_MAX = 128    # up to this many detections: cached pair indices instead of pdist
+
+
+@lru_cache(maxsize=PAIR_INDEX_MAX)
+def _pair_index(n: int):
+    """Row and column of every pair ``i < j`` of ``n`` points, in ``pdist``'s order."""
+    i, j = np.triu_indices(n, 1)
+    i.flags.writeable = j.flags.writeable = False
+    return i, j
+
+
+def condensed_distances(points: np.ndarray) -> np.ndarray:
+    """
+    ``scipy.spatial.distance.pdist(points)`` (Euclidean, the same values bit for bit: a
+    test holds them equal).
+
+    Up to ``PAIR_INDEX_MAX`` points the pairs are read from cached indices: pdist's
+    argument checks and array-API dispatch cost more than its arithmetic at a few dozen
+    returns. Larger scans call pdist, whose memory stays at one value per pair.
+    """
+    n = len(points)
+    if n > PAIR_INDEX_MAX:
+        return pdist(points)
+    i, j = _pair_index(n)
+    x, y = points[:, 0], points[:, 1]
+    dx, dy = x[i] - x[j], y[i] - y[j]           # one coordinate at a time: 5x faster than rows
+    dx *= dx
+    dy *= dy
+    dx += dy
+    return np.sqrt(dx, out=dx)
 DENSE_PAIRS_PER_POINT = 16   # beyond this many pairs within d_max per point: Delaunay edges
 
 
@@ -166,7 +197,7 @@ def _merges(points: np.ndarray, d_max: float):
     if n < 2:
         return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
     if n <= LINKAGE_MAX:
-        z = single_linkage(pdist(points), n)
+        z = single_linkage(condensed_distances(points), n)
         k = int(np.searchsorted(z[:, 2], d_max, side='right'))
         pair = z[:k, :2].astype(np.int64).tolist()
         rep = list(range(n)) + [0] * k                # a cluster's smallest detection index
@@ -278,9 +309,13 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
     if n == 0:
         return [], 0
     a, b, length = _merges(points, d_max)
-    # thresholds: d_min, then every distinct merge height in (d_min, d_max]
-    heights = np.unique(length[length > d_min])
-    thresholds = np.concatenate([[d_min], heights])
+    # thresholds: d_min, then every distinct merge height in (d_min, d_max] (the merges
+    # come in ascending height, so the distinct ones follow a change)
+    above = length[length > d_min]
+    distinct = np.empty(len(above), dtype=bool)
+    distinct[:1] = True
+    np.not_equal(above[1:], above[:-1], out=distinct[1:])
+    thresholds = np.concatenate([[d_min], above[distinct]])
     dropped = 0
     if len(thresholds) > max_thresholds:
         keep = np.unique(np.round(np.linspace(0, len(thresholds) - 1,
@@ -428,7 +463,7 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     base = dist[len(dist) // 2]                      # a middle distance partition
     # labels are root detection indices (< m): bincount instead of unique / add.at
     counts_all = np.bincount(base, minlength=len(points))
-    labels = np.flatnonzero(counts_all >= 4)
+    labels = (counts_all >= 4).nonzero()[0]
     if not len(labels):
         return
     counts = counts_all[labels]
@@ -440,7 +475,7 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     d2 = (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
           + Gi[None, :, 1, 1] * e[..., 1] ** 2)
     near = (d2 < predicted['gate']) & big[:, None]
-    cand = np.flatnonzero(near.any(axis=1))
+    cand = near.any(axis=1).nonzero()[0]
     if not len(cand):
         return
     nc_all = near[cand]
@@ -450,13 +485,13 @@ def _sub_partitions(points, pset, dist, predicted, cfg, seed):
     k_rate = expected_object_counts(counts[cand], rate, cfg.max_sub_objects)
     k_all = np.minimum(np.minimum(np.maximum(k_pred, k_rate), cfg.max_sub_objects),
                        counts[cand])
-    for row in np.flatnonzero(k_all >= 2):
+    for row in (k_all >= 2).nonzero()[0]:
         if len(pset.partitions) >= cfg.max_partitions:
             pset.capped_partitions += 1               # no room: not worth a k-means
             continue
         c = cand[row]
         k = int(k_all[row])
-        idx = np.flatnonzero(base == labels[c])
+        idx = (base == labels[c]).nonzero()[0]
         init = centre[nc_all[row]][:k] if k_pred[row] >= k else None
         sub = kmeans_pp(points[idx], k, seed=seed, init=init)
         new = base.copy()

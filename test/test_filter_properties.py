@@ -201,6 +201,20 @@ def test_single_linkage_equals_scipys_public_call(pts):
         assert np.array_equal(P.single_linkage(y, len(pts)), linkage(y, method='single'))
 
 
+@given(point_sets(max_n=150))
+def test_condensed_distances_equal_pdist_bit_for_bit(pts):
+    """
+    The cached-pair distances of small scans are ``pdist``'s exactly (same squares, same
+    sum, same root), and larger scans go to pdist itself: merge heights, and so the
+    distance thresholds, cannot move.
+    """
+    from scipy.spatial.distance import pdist
+
+    from extended_tracker.partition import condensed_distances
+
+    assert np.array_equal(condensed_distances(pts), pdist(pts))
+
+
 @given(point_sets(max_n=90), st.floats(0.05, 1.5), st.booleans())
 def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     """
