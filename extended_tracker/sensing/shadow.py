@@ -17,6 +17,7 @@ ranges of the other confident estimates.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -37,27 +38,39 @@ class Visibility:
     outside: np.ndarray | None = None
 
 
-def _geometry(mix: Mixture, widen_sigmas: float, max_widen: float):
+def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
+              max_widen: float):
     """
     Bearing, half-width (rad), near and far range of each component's ellipse.
 
-    Returns ``(bearing, half, half_widened, r_near, r_far)``: ``half`` from the expected
-    extent alone, ``half_widened`` with ``widen_sigmas`` position stds across the line of
-    sight added (at most ``max_widen`` metres).
+    ``m`` (k, 4) are the kinematic means, ``X`` (k, 2, 2) the expected extents and ``P``
+    (k, 4, 4) the kinematic covariances. Returns ``(bearing, half, half_widened, r_near,
+    r_far, r, across)``: ``half`` from the expected extent alone, ``half_widened`` with
+    ``widen_sigmas`` position stds across the line of sight added (at most ``max_widen``
+    metres); ``r`` the centre's range and ``across`` (k, 2) the unit vector across the
+    line of sight.
     """
-    c = mix.m[:, :2]
-    r = np.hypot(c[:, 0], c[:, 1])
-    bearing = np.arctan2(c[:, 1], c[:, 0])
-    e = np.column_stack([np.cos(bearing), np.sin(bearing)])      # along the line of sight
-    u = np.column_stack([-e[:, 1], e[:, 0]])                     # across it
-    X = mix.expected_extent()
+    k = len(m)
+    r = np.hypot(m[:, 0], m[:, 1])
+    bearing = np.arctan2(m[:, 1], m[:, 0])
+    e = np.empty((k, 2))                                         # along the line of sight
+    np.cos(bearing, out=e[:, 0])
+    np.sin(bearing, out=e[:, 1])
+    u = e[:, ::-1] * _ACROSS                                     # across it
     along = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', e, X, e), 0.0))
     across = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, X, u), 0.0))
-    sigma = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, mix.P[:, :2, :2], u), 0.0))
-    half = np.stack([across, across + np.minimum(widen_sigmas * sigma, max_widen)])
-    with np.errstate(divide='ignore', invalid='ignore'):
-        half_angle = np.where(r > half, np.arcsin(np.clip(half / r, 0, 1)), np.pi / 2)
-    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, 0.0), r + along
+    sigma = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, P[:, :2, :2], u), 0.0))
+    half = np.empty((2, k))
+    half[0] = across
+    np.add(across, np.minimum(widen_sigmas * sigma, max_widen), out=half[1])
+    # asin(half / r) where the sensor is outside the half-width, else a half turn (the
+    # division is skipped there: r may be 0)
+    ratio = np.divide(half, r, out=np.ones((2, k)), where=r > half)
+    half_angle = np.arcsin(np.minimum(np.maximum(ratio, 0.0), 1.0))
+    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, 0.0), r + along, r, u
+
+
+_ACROSS = np.array([-1.0, 1.0])      # (cos, sin) reversed times this is (-sin, cos)
 
 
 def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -98,7 +111,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     lo = np.searchsorted(ang, bearing - half_angle, side='left')
     hi = np.searchsorted(ang, bearing + half_angle, side='right')
     # an interval narrower than the beam spacing still sees its nearest beam
-    nearest = np.clip(np.searchsorted(ang, bearing), 0, len(ang) - 1)
+    nearest = np.minimum(np.searchsorted(ang, bearing), len(ang) - 1)
     empty = hi <= lo
     lo = np.where(empty, nearest, lo)
     hi = np.where(empty, nearest + 1, hi)
@@ -108,7 +121,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # intervals whose nearest return is not nearer than the object are all free: their
     # count is the width and their angle sum a prefix-sum difference. Worth it when the
     # intervals hold more beams than the range-minimum table costs (B log2 B).
-    if width.sum() > len(ang) * np.log2(max(len(ang), 2)):
+    if np.add.reduce(width) > len(ang) * math.log2(max(len(ang), 2)):
         clear = _range_min(rng, lo, hi) >= thr
         cum = np.concatenate([[0.0], np.cumsum(ang)])
         free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
@@ -117,10 +130,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         free_sum = np.zeros(k)
     # the others: one padded gather per class of widths (up to 64 beams, then doubling),
     # so the work stays within twice their total width and the calls are a handful
-    cls = np.maximum(np.ceil(np.log2(np.maximum(width, 1) / GATHER_WIDTH)), 0).astype(int)
-    cls[clear] = -1
-    for c in np.unique(cls[~clear]).tolist():
-        ni = np.flatnonzero(cls == c)
+    for ni in _width_classes(width, clear):
         w_max = int(width[ni].max())
         idx = lo[ni, None] + np.arange(w_max)[None, :]
         inside = idx < hi[ni, None]
@@ -134,15 +144,31 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # part of the interval outside the field of view is not seen at all
     step = max(step, 1e-9)
     span = 2 * half_angle
-    covered = np.clip(np.minimum(bearing + half_angle, scan.angle_hi + step / 2)
-                      - np.maximum(bearing - half_angle, scan.angle_lo - step / 2), 0.0, None)
-    in_fov = np.where(span > 0, np.clip(covered / np.maximum(span, 1e-12), 0.0, 1.0), 1.0)
+    covered = np.maximum(np.minimum(bearing + half_angle, scan.angle_hi + step / 2)
+                         - np.maximum(bearing - half_angle, scan.angle_lo - step / 2), 0.0)
+    in_fov = np.where(span > 0,
+                      np.minimum(np.maximum(covered / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
     centre_in = (bearing >= scan.angle_lo - step / 2) & (bearing <= scan.angle_hi + step / 2)
     return np.where(centre_in, frac_visible * in_fov, 0.0), mean_free
 
 
-def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
-                    with_offset: bool = True) -> Visibility:
+def _width_classes(width: np.ndarray, clear: np.ndarray) -> list:
+    """
+    The intervals not already known to be clear, grouped for padded gathers: up to
+    ``GATHER_WIDTH`` beams, then classes of doubling width (each gather pads its rows to
+    its widest, so the work stays within twice the intervals' total width).
+    """
+    todo = (~clear).nonzero()[0]
+    if not len(todo):
+        return []
+    if width[todo].max() <= GATHER_WIDTH:
+        return [todo]                                 # the usual case: one class
+    cls = np.maximum(np.ceil(np.log2(np.maximum(width, 1) / GATHER_WIDTH)), 0).astype(int)
+    cls[clear] = -1
+    return [(cls == c).nonzero()[0] for c in np.unique(cls[todo]).tolist()]
+
+
+def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     """
     p_D of every predicted component for one scan, by ``cfg.detection.model``.
 
@@ -160,8 +186,8 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
     if det.model == 'constant' or scan is None or n == 0:
         ones = np.ones(n)
         return Visibility(np.full(n, det.p_d0), ones, None)
-    bearing, half, half_widened, r_near, r_far = _geometry(mix, det.widen_sigmas,
-                                                          det.max_widen)
+    bearing, half, half_widened, r_near, r_far, r_c, across = _geometry(
+        mix.m, mix.expected_extent(), mix.P, det.widen_sigmas, det.max_widen)
 
     def lookup(half_angle):
         if det.model == 'scan_shadow':
@@ -171,34 +197,33 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
 
     # p_D from the interval widened by the position uncertainty (capped); the centroid
     # offset from the plain one
-    widen = not with_offset or (det.max_widen > 0 and det.widen_sigmas > 0)
-    offset = None
-    if not with_offset:
-        visible, _ = lookup(half_widened)
+    widen = det.max_widen > 0 and det.widen_sigmas > 0
+    if det.model == 'scan_shadow' and widen:
+        # both intervals of every component in one lookup
+        both, mean_free = _visible_fraction(
+            np.concatenate([bearing, bearing]), np.concatenate([half, half_widened]),
+            np.concatenate([r_near, r_near]), scan, scan.ranges, det.shadow_margin)
+        plain, visible, mean_free = both[:n], both[n:], mean_free[:n]
     else:
-        if det.model == 'scan_shadow' and widen:
-            # both intervals of every component in one lookup
-            both, mean_free = _visible_fraction(
-                np.tile(bearing, 2), np.concatenate([half, half_widened]), np.tile(r_near, 2),
-                scan, scan.ranges, det.shadow_margin)
-            plain, visible, mean_free = both[:n], both[n:], mean_free[:n]
-        else:
-            plain, mean_free = lookup(half)
-            visible = lookup(half_widened)[0] if widen else plain
-        # The visible part's centroid sits at the mean unshadowed angle, on the object's
-        # near range: an offset across the line of sight from the centre.
-        r_c = np.hypot(mix.m[:, 0], mix.m[:, 1])
-        across = np.column_stack([-np.sin(bearing), np.cos(bearing)])
-        shift = np.where((plain > 0) & (plain < 1), _wrap(mean_free - bearing) * r_c, 0.0)
-        offset = across * shift[:, None]
+        plain, mean_free = lookup(half)
+        visible = lookup(half_widened)[0] if widen else plain
+    # The visible part's centroid sits at the mean unshadowed angle, on the object's
+    # near range: an offset across the line of sight from the centre.
+    shift = np.where((plain > 0) & (plain < 1), _wrap(mean_free - bearing) * r_c, 0.0)
+    offset = across * shift[:, None]
     # wholly out of the field of view or beyond range: the object has left the scene
     step = abs(scan.angle_step)
     outside = ((r_near > scan.range_max) | (bearing + half < scan.angle_lo - step)
                | (bearing - half > scan.angle_hi + step))
-    visible = np.where(r_near > scan.range_max, 0.0, visible)
-    visible = np.where(visible < det.min_visibility, 0.0, visible)
+    visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside)
+
+
+def _seen(visible, r_near, scan: ScanPoints, det) -> np.ndarray:
+    """The visible fraction, 0 beyond the scan's range or under ``min_visibility``."""
+    visible = np.where(r_near > scan.range_max, 0.0, visible)
+    return np.where(visible < det.min_visibility, 0.0, visible)
 
 
 def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.5):
@@ -215,7 +240,7 @@ def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.
         if not np.any(others):
             blocking = np.full(len(scan.angles), np.inf)
         else:
-            oi = np.flatnonzero(others)
+            oi = others.nonzero()[0]
             cover = np.abs(_wrap(ang_sorted[None, :] - bearing[oi, None])) <= half[oi, None]
             near = np.where(cover, r_near[oi, None], np.inf).min(axis=0)
             blocking = np.empty(len(scan.angles))
@@ -247,6 +272,9 @@ def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.nda
     det = cfg.detection
     if det.model != 'scan_shadow' or scan is None or not len(comp):
         return default[comp]
-    probe = Mixture(mix.w[comp], mix.alpha[comp], mix.beta[comp], m_updated, P_updated,
-                    mix.v[comp], mix.V[comp], mix.label[comp])
-    return detection_model(probe, scan, cfg, with_offset=False).p_d
+    # the widened interval of each pair, as detection_model gives it for a component
+    bearing, _, half_widened, r_near, *_ = _geometry(
+        m_updated, mix.expected_extent(comp), P_updated, det.widen_sigmas, det.max_widen)
+    visible, _ = _visible_fraction(bearing, half_widened, r_near, scan, scan.ranges,
+                                   det.shadow_margin)
+    return det.p_d0 * _seen(visible, r_near, scan, det)
