@@ -199,21 +199,28 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
     if max_range > 0:
         r_hi = min(r_hi, max_range)
     angles = a0 + inc * np.arange(n)
-    with np.errstate(invalid='ignore'):
-        is_nan = np.isnan(ranges)
-        pos_inf = np.isposinf(ranges)
-        neg_inf = np.isneginf(ranges)
-        finite = ~(is_nan | pos_inf | neg_inf)
-        below = finite & (ranges < r_lo)
-        above = finite & ((ranges > r_hi) if range_max_inclusive else (ranges >= r_hi))
+    finite = np.isfinite(ranges)
+    is_nan = np.isnan(ranges)
+    inf = finite | is_nan
+    np.logical_not(inf, out=inf)
+    neg_inf = inf & np.signbit(ranges)
+    pos_inf = inf ^ neg_inf
+    # comparisons on the finite ranges only: a NaN compared raises the invalid flag
+    fin = np.where(finite, ranges, r_lo)
+    below = fin < r_lo
+    above = (fin > r_hi) if range_max_inclusive else (fin >= r_hi)
+    above &= finite
     valid = finite & ~below & ~above
-    masked = {'nan': int(is_nan.sum()), 'pos_inf': int(pos_inf.sum()),
-              'neg_inf': int(neg_inf.sum()), 'below_min': int(below.sum()),
-              'above_max': int(above.sum())}
-    beam = np.flatnonzero(valid)
+    masked = {'nan': int(np.count_nonzero(is_nan)), 'pos_inf': int(np.count_nonzero(pos_inf)),
+              'neg_inf': int(np.count_nonzero(neg_inf)),
+              'below_min': int(np.count_nonzero(below)),
+              'above_max': int(np.count_nonzero(above))}
+    beam = valid.nonzero()[0]
     r = ranges[beam]
     th = angles[beam]
-    points = np.column_stack([r * np.cos(th), r * np.sin(th)])
+    points = np.empty((len(beam), 2))
+    np.multiply(r, np.cos(th), out=points[:, 0])
+    np.multiply(r, np.sin(th), out=points[:, 1])
     clean = np.where(valid, ranges, np.inf)
     if n:
         lo, hi = float(min(angles[0], angles[-1])), float(max(angles[0], angles[-1]))
