@@ -309,7 +309,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         if n_part >= BATCH_MIN_PARTITIONS and ka.max() >= BATCH_MIN_SINGLETONS:
             bucket = np.searchsorted(np.quantile(ka, [1 / 3, 2 / 3]), ka, side='left')
         for b in np.unique(bucket).tolist():
-            sel = np.flatnonzero(bucket == b)
+            sel = (bucket == b).nonzero()[0]
             rows = bucket[pid] == b
             lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
                 np.searchsorted(sel, pid[rows]), flat[rows], single[rows], la[rows],

@@ -262,14 +262,14 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     # added to the head instead of a full moment match
     heavy_member = ~first & (mix.w[order] >= ABSORB_RATIO * mix.w[head])
     all_light = np.bincount(gid, weights=heavy_member, minlength=n_groups) == 0
-    starts = np.flatnonzero(first)
+    starts = first.nonzero()[0]
     single = ~far_group & (size == 1)
     absorb = ~far_group & (size > 1) & all_light
     full = ~far_group & (size > 1) & ~all_light
     singles = [order[starts[single]]]
-    multi = [order[starts[g]:starts[g] + size[g]] for g in np.flatnonzero(full).tolist()]
-    absorbed = [order[starts[g]:starts[g] + size[g]] for g in np.flatnonzero(absorb).tolist()]
-    for g in np.flatnonzero(far_group).tolist():
+    multi = [order[starts[g]:starts[g] + size[g]] for g in full.nonzero()[0].tolist()]
+    absorbed = [order[starts[g]:starts[g] + size[g]] for g in absorb.nonzero()[0].tolist()]
+    for g in far_group.nonzero()[0].tolist():
         remaining = order[starts[g]:starts[g] + size[g]]    # heaviest first
         while len(remaining):
             j = remaining[0]

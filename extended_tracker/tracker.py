@@ -9,7 +9,7 @@ the per-scan pipeline (:mod:`extended_tracker.pipeline`) call :func:`predict_sta
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -340,7 +340,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     area = clutter_area if clutter_area else mc.surveillance_area
     p_d = np.asarray(p_d, dtype=float).reshape(n_comp)
     if rate_scale is not None:
-        rate_scale = np.clip(np.asarray(rate_scale, dtype=float), 1e-3, None)
+        rate_scale = np.maximum(np.asarray(rate_scale, dtype=float), 1e-3)
     pset = build_partitions(points, cfg.partition, confident_predictions(mix, cfg))
     diag.partitions = len(pset.partitions)
     diag.cells = len(pset.cells)
@@ -351,7 +351,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     # existing components: gated (component, cell) pairs
     comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg))
-    hidden = None if visibility is None else np.clip(1.0 - visibility, 0.0, 1.0)
+    hidden = None if visibility is None else np.minimum(np.maximum(1.0 - visibility, 0.0),
+                                                          1.0)
     # existing components and the birth row (one GGIW per cell) in one batched update
     birth_prior = _birth_prior(stats, cfg, area)
     both = Mixture.concat([mix, birth_prior]) if n_comp else birth_prior
@@ -368,7 +369,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
         upd = upd.take(keep)
     diag.pairs = len(comp)
-    log_pd0 = np.log(cfg.detection.p_d0)
+    log_pd0 = _log_constant(cfg.detection.p_d0)
 
     log_g = np.full((n_comp + 1, n_cells), NEG_INF)
     log_g[comp, cell] = np.log(p_d_pair) + upd.log_lik
@@ -395,7 +396,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     sel = w_det >= prune
     detected = upd.take(sel).mixture(w_det[sel], mix.label[comp[sel]])
     w_birth = np.exp(out.log_w_detected[n_comp, :])
-    bsel = np.flatnonzero(w_birth >= cfg.birth.min_weight)
+    bsel = (w_birth >= cfg.birth.min_weight).nonzero()[0]
     born, next_label = _label_births(pset, bsel, state.next_label,
                                      *_cell_claims(mix, comp, cell, w_det, n_cells),
                                      w_birth)
@@ -533,10 +534,14 @@ def _pad(a, n: int, fill: float):
 
 def _birth_log_miss_factor(cfg: TrackerConfig) -> float:
     """``log q_D`` of the birth intensity: ``1 - p_D0 (1 - (beta/(beta+1))^alpha)``."""
-    alpha = cfg.birth.rate_shape
-    beta = alpha / cfg.birth.expected_rate
+    return _birth_log_miss(cfg.birth.rate_shape, cfg.birth.expected_rate, cfg.detection.p_d0)
+
+
+@lru_cache(maxsize=64)                 # constant while the configuration is
+def _birth_log_miss(alpha: float, expected_rate: float, p_d0: float) -> float:
+    beta = alpha / expected_rate
     log_e0 = alpha * (np.log(beta) - np.log1p(beta))
-    return float(np.log1p(cfg.detection.p_d0 * np.expm1(log_e0)))
+    return float(np.log1p(p_d0 * np.expm1(log_e0)))
 
 
 def _implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
@@ -553,8 +558,19 @@ def _implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
 
 def gate_threshold(cfg: TrackerConfig) -> float:
     """Squared Mahalanobis gate of (component, cell) pairs (chi-square, 2 dof)."""
-    # chi2.ppf(p, 2) = -2 log(1 - p)
-    return float(-2.0 * np.log1p(-cfg.partition.gate_probability))
+    return _chi2_2dof_ppf(cfg.partition.gate_probability)
+
+
+@lru_cache(maxsize=64)                 # asked for twice a scan with the same probability
+def _chi2_2dof_ppf(p: float) -> float:
+    """``chi2.ppf(p, 2) = -2 log(1 - p)``."""
+    return float(-2.0 * np.log1p(-p))
+
+
+@lru_cache(maxsize=64)
+def _log_constant(x: float) -> float:
+    """``log x`` of a configured constant (a probability), computed once."""
+    return np.log(x)
 
 
 def _cell_claims(mix: Mixture, comp, cell, w_det, n_cells):
@@ -594,7 +610,7 @@ def _label_births(pset, birth_cells, next_label, claim=None, claim_weight=None,
     if claim is not None:
         claimed = claim_weight[birth_cells] > birth_weight[birth_cells]
         out[claimed] = claim[birth_cells[claimed]]
-        free = np.flatnonzero(~claimed)
+        free = (~claimed).nonzero()[0]
         if len(free) < k:
             out[free], next_label = _label_births(pset, birth_cells[free], next_label)
             return out, next_label
@@ -668,7 +684,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     labels, _, weight = mix.per_label()
     # only labels light enough to pair with the lightest other one can take part
     two = np.partition(weight, 1)[:2]
-    cand = np.flatnonzero(weight + np.where(weight == two[0], two[1], two[0]) <= fuse_weight)
+    cand = (weight + np.where(weight == two[0], two[1], two[0]) <= fuse_weight).nonzero()[0]
     if len(cand) < 2:
         return mix, 0
     heads = order[is_head][cand]
@@ -696,7 +712,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     for i in senior.tolist():
         if into[i] != i:
             continue                                   # joined a more senior label
-        for j in np.flatnonzero(close[i]).tolist():
+        for j in close[i].nonzero()[0].tolist():
             if into[j] == j and rank[j] > rank[i] and total[i] + total[j] <= fuse_weight:
                 into[j] = i
                 total[i] += total[j]
@@ -732,7 +748,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     heavy = far & (mix.w >= split_weight)
     label = mix.label.copy()
     # fresh labels in order of weight, as the objects they stand for are found
-    new = np.flatnonzero(heavy)
+    new = heavy.nonzero()[0]
     new = new[np.argsort(-mix.w[new], kind='stable')]
     label[new] = next_label + np.arange(len(new))
     keep = ~(far & ~heavy)
@@ -769,7 +785,7 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     visibility = visibility or {}
     return Estimates(
         label=chosen.astype(np.int64),
-        existence=np.clip(lab_w, 0.0, 1.0),
+        existence=np.minimum(np.maximum(lab_w, 0.0), 1.0),
         m=mix.m[best],
         P=mix.P[best],
         X=mix.expected_extent(best),
