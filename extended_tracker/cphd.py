@@ -90,6 +90,13 @@ def _log_falling(n_max: int, j_max: int):
     return np.where(valid, lf[n] - lf[nj], NEG_INF), nj
 
 
+@cached_tables(maxsize=16)
+def _log_counts(n_max: int) -> np.ndarray:
+    """``log n`` for ``n = 0..N_max`` (``-inf`` at 0)."""
+    with np.errstate(divide='ignore'):
+        return np.log(np.arange(n_max + 1))
+
+
 def _log_lambda_table(log_q0: float, n_max: int, j_max: int) -> np.ndarray:
     """``T[n, j] = log(n!/(n-j)!) + (n-j) log q0`` for ``j <= n``, else ``-inf``."""
     falling, nj = _log_falling(n_max, j_max)
@@ -185,8 +192,8 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     # partition, packed into rows padded with -inf.
     act = single & np.isfinite(la) & feasible[pid]
     R = int(ka.max()) if n_part else 0
-    slot = np.cumsum(act) - 1
-    slot -= np.concatenate([[0], np.cumsum(ka)[:-1]])[pid]
+    slot = act.cumsum() - 1
+    slot -= np.concatenate([[0], ka.cumsum()[:-1]])[pid]
     S = np.full((n_part, R), NEG_INF)
     S[pid[act], slot[act]] = la[act]
     pre = log_esf_prefixes(S)                           # e_r of the first t singletons
@@ -203,7 +210,7 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     cells, vals = [], []
     # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
     rows = feasible[pid] & ~single
-    if np.any(rows):
+    if rows.any():
         u_ns = lse_last(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
         pr = pid[rows]
         cells.append(flat[rows])
@@ -275,9 +282,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         log_clutter_pmf = np.concatenate(
             [log_clutter_pmf, np.full(need - len(log_clutter_pmf), NEG_INF)])
     log_pc_fact = log_clutter_pmf[:need] + lf[:need]
-    n_idx = np.arange(n_max + 1)
-    with np.errstate(divide='ignore'):
-        log_n = np.log(n_idx)
+    log_n = _log_counts(n_max)
 
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
@@ -305,15 +310,20 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         # Partitions are batched by their number of active singletons (terciles when
         # there are many): a batch costs its size times its largest count squared, so
         # padding a 5-singleton partition to 55 would waste most of the work.
-        bucket = np.zeros(n_part, dtype=np.int64)
         if n_part >= BATCH_MIN_PARTITIONS and ka.max() >= BATCH_MIN_SINGLETONS:
-            bucket = np.searchsorted(np.quantile(ka, [1 / 3, 2 / 3]), ka, side='left')
-        for b in np.unique(bucket).tolist():
-            sel = (bucket == b).nonzero()[0]
-            rows = bucket[pid] == b
-            lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
-                np.searchsorted(sel, pid[rows]), flat[rows], single[rows], la[rows],
-                k1[sel], k2[sel], ka[sel], log_A[sel], feasible[sel], T, W1, log_pc_fact,
+            bucket = np.quantile(ka, [1 / 3, 2 / 3]).searchsorted(ka, side='left')
+            for b in np.unique(bucket).tolist():
+                sel = (bucket == b).nonzero()[0]
+                rows = bucket[pid] == b
+                lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
+                    sel.searchsorted(pid[rows]), flat[rows], single[rows], la[rows],
+                    k1[sel], k2[sel], ka[sel], log_A[sel], feasible[sel], T, W1,
+                    log_pc_fact, k_most)
+                np.logaddexp.at(log_u_cell, cells, vals)
+        else:
+            # one batch: every partition, no selection to make
+            lam_P[:], u0_terms[:], cells, vals = _partition_terms(
+                pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1, log_pc_fact,
                 k_most)
             np.logaddexp.at(log_u_cell, cells, vals)
 

@@ -91,10 +91,21 @@ class Mixture:
                          for n in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label')))
 
     def expected_extent(self, idx=None) -> np.ndarray:
-        """Return ``E[X] = V / (v - 6)``, shape (n, 2, 2), or of the components ``idx``."""
+        """
+        Return ``E[X] = V / (v - 6)``, shape (n, 2, 2), or of the components ``idx``.
+
+        The whole mixture's is computed once (gating, the p_D model and the plausibility
+        check all ask for it) and shared, so it is read-only.
+        """
         if idx is None:
-            return self.V / (self.v - IW_OFFSET)[:, None, None]
+            return self._extent
+        if '_extent' in self.__dict__:
+            return self._extent[idx]
         return self.V[idx] / (self.v[idx] - IW_OFFSET)[:, None, None]
+
+    @cached_property
+    def _extent(self):
+        return read_only(self.V / (self.v - IW_OFFSET)[:, None, None])[0]
 
     def expected_rate(self) -> np.ndarray:
         """Return ``E[gamma] = alpha / beta``, shape (n,)."""
@@ -141,7 +152,7 @@ class Mixture:
         lab = self.label[order]
         is_head = np.ones(len(order), dtype=bool)
         is_head[1:] = lab[1:] != lab[:-1]
-        return read_only(order, is_head, np.cumsum(is_head) - 1)
+        return read_only(order, is_head, is_head.cumsum() - 1)
 
 
 # --- closed-form 2x2 symmetric positive definite helpers (batched over leading axes) ---
@@ -207,7 +218,7 @@ def sqrtm_spd2(A):
 
 def symmetrize(A):
     """Return ``(A + A^T) / 2`` over the last two axes."""
-    return 0.5 * (A + np.swapaxes(A, -1, -2))
+    return 0.5 * (A + A.swapaxes(-1, -2))
 
 
 def log_gamma2(a):
@@ -419,7 +430,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     if centroid_offset is not None:
         eps = eps - centroid_offset[comp]
     m_new = m + np.einsum('kij,kj->ki', K, eps)
-    P_new = symmetrize(P - K @ S @ np.swapaxes(K, 1, 2))
+    P_new = symmetrize(P - K @ S @ K.swapaxes(1, 2))
 
     X_half = sqrtm_spd2(X)
     S_ihalf = inv2(sqrtm_spd2(S))
@@ -427,7 +438,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     u = np.einsum('kij,kj->ki', X_half @ S_ihalf, eps)
     N_hat = u[:, :, None] * u[:, None, :]
     M = X_half @ Y_ihalf
-    Z_hat = M @ Z @ np.swapaxes(M, 1, 2)
+    Z_hat = M @ Z @ M.swapaxes(1, 2)
     v_new = v + n
     V_new = symmetrize(V + N_hat + Z_hat)
 
@@ -489,5 +500,5 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
     e = stats.mean[None, :, :] - mix.m[:, None, :2]          # (nc, ncell, 2)
     d2 = (Gi[:, None, 0, 0] * e[..., 0] ** 2 + 2 * Gi[:, None, 0, 1] * e[..., 0] * e[..., 1]
           + Gi[:, None, 1, 1] * e[..., 1] ** 2)
-    comp, cell = np.nonzero(d2 < threshold)
+    comp, cell = (d2 < threshold).nonzero()
     return comp.astype(np.int64), cell.astype(np.int64)

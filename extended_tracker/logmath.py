@@ -44,7 +44,9 @@ def lse_last(a: np.ndarray) -> np.ndarray:
     # gives 0 either way) and its log(0) is never evaluated: no errstate (2 us) per call
     safe = np.maximum(np.maximum.reduce(a, axis=-1), _LOWEST)
     s = np.add.reduce(np.exp(a - safe[..., None]), axis=-1)
-    return safe + np.log(s, out=np.full(s.shape, -np.inf), where=s > 0)
+    out = np.empty(s.shape)
+    out.fill(-np.inf)
+    return safe + np.log(s, out=out, where=s > 0)
 
 
 _LOWEST = np.finfo(float).min

@@ -196,7 +196,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         background, keep = update_background(background, sp, dt, cfg.background, prot)
         bg_points = points[~keep]
         points = points[keep]
-        diag['background_dropped'] = int((~keep).sum())
+        diag['background_dropped'] = len(keep) - int(np.count_nonzero(keep))
         if state.elapsed + dt <= cfg.background.warmup:
             # warm-up: learn the background before tracking anything, so walls are never
             # tracked; the filter runs predict-only steps meanwhile
@@ -206,7 +206,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
 
     pred = predict_state(filt, dt, cfg)
     vis = detection_model(pred.mixture, sp, cfg)
-    if vis.outside is not None and np.any(vis.outside):
+    if vis.outside is not None and vis.outside.any():
         # objects that left the field of view or range can never be seen again here:
         # drop them rather than let them coast forever with p_D = 0
         keep_c = ~vis.outside
@@ -214,7 +214,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         vis = replace(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
                       rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
                       offset=vis.offset[keep_c], outside=vis.outside[keep_c])
-        diag['left_view'] = int((~keep_c).sum())
+        diag['left_view'] = len(keep_c) - int(np.count_nonzero(keep_c))
 
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)

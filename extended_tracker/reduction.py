@@ -178,7 +178,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     g = len(groups)
     sizes = np.array([len(x) for x in groups])
     idx = np.concatenate(groups)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    starts = np.concatenate([[0], sizes.cumsum()[:-1]])
     gid = np.repeat(np.arange(g), sizes)
     w = mix.w[idx]
     W = np.add.reduceat(w, starts)
@@ -287,7 +287,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     merged = Mixture.concat(parts)
     capped = 0
     if len(merged) > max_components:
-        order = np.argsort(-merged.w, kind='stable')[:max_components]
+        order = (-merged.w).argsort(kind='stable')[:max_components]
         capped = len(merged) - max_components
         merged = merged.take(np.sort(order))
     return merged, capped

@@ -411,7 +411,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
             vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
 
     oversized = _implausible(posterior, cfg)
-    diag.oversized = int(oversized.sum())
+    diag.oversized = int(np.count_nonzero(oversized))
     if diag.oversized:
         posterior = posterior.take(~oversized)
     reduced, capped = reduce_mixture(posterior, prune, cfg.reduction.merge_distance,
@@ -472,7 +472,7 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     est_label[jumped] = fresh
     # the fresh labels are the largest: move them to the end, so the estimates stay in
     # ascending label order as extract gives them (the shown record searches them)
-    order = np.argsort(est_label, kind='stable')
+    order = est_label.argsort(kind='stable')
     return (replace(new, mixture=replace(mix, label=label),
                     next_label=new.next_label + len(bad)),
             replace(est, label=est_label).take(order), len(bad))
@@ -485,7 +485,7 @@ def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> Fil
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     elapsed = np.concatenate([old.shown_elapsed[keep] + new.dt, np.zeros(len(shown))])
-    order = np.argsort(label, kind='stable')
+    order = label.argsort(kind='stable')
     return replace(new, shown=label[order], shown_pos=pos[order],
                    shown_elapsed=elapsed[order])
 
@@ -498,7 +498,7 @@ def _find_sorted(ascending: np.ndarray, a: np.ndarray):
     """
     if not len(ascending):
         return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
-    at = np.minimum(np.searchsorted(ascending, a), len(ascending) - 1)
+    at = np.minimum(ascending.searchsorted(a), len(ascending) - 1)
     return at, ascending[at] == a
 
 
@@ -585,7 +585,7 @@ def _cell_claims(mix: Mixture, comp, cell, w_det, n_cells):
     labels, rank, _ = mix.per_label()
     per = np.zeros((len(labels), n_cells))
     np.add.at(per, (rank[comp], cell), w_det)
-    best = np.argmax(per, axis=0)
+    best = per.argmax(axis=0)
     return labels[best], per[best, np.arange(n_cells)]
 
 
@@ -635,7 +635,8 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
     missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
     order = np.lexsort((-w_det, pair_lab))            # heaviest pair first in each label
-    first = order[np.concatenate([[True], np.diff(pair_lab[order]) != 0])]
+    lab = pair_lab[order]
+    first = order[np.concatenate([[True], lab[1:] != lab[:-1]])]
     ok = detected[pair_lab[first]] > missed[pair_lab[first]]
     first = first[ok]
     return dict(zip(labels[pair_lab[first]].tolist(), stats.n[cell[first]].tolist()))
@@ -716,7 +717,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
             if into[j] == j and rank[j] > rank[i] and total[i] + total[j] <= fuse_weight:
                 into[j] = i
                 total[i] += total[j]
-    fused = int(np.sum(into != np.arange(len(cand))))
+    fused = int(np.count_nonzero(into != np.arange(len(cand))))
     if not fused:
         return mix, 0
     target = np.arange(len(weight))
@@ -749,7 +750,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     label = mix.label.copy()
     # fresh labels in order of weight, as the objects they stand for are found
     new = heavy.nonzero()[0]
-    new = new[np.argsort(-mix.w[new], kind='stable')]
+    new = new[(-mix.w[new]).argsort(kind='stable')]
     label[new] = next_label + np.arange(len(new))
     keep = ~(far & ~heavy)
     return replace(mix, label=label).take(keep), next_label + len(new)
@@ -768,10 +769,10 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     by_lab, is_head, _ = mix.by_label()
     heads = by_lab[is_head]                            # one per label, labels ascending
     labels, _, weight = mix.per_label()
-    order = np.argsort(-weight, kind='stable')
+    order = (-weight).argsort(kind='stable')
     ex = cfg.extraction
     if cfg.model.mode == 'cphd':
-        n_hat = int(np.argmax(state.log_card))
+        n_hat = int(state.log_card.argmax())
         chosen = order[:n_hat]
     else:
         chosen = order[weight[order] > ex.phd_threshold]
@@ -779,7 +780,7 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     chosen = np.sort(labels[chosen])
     if not len(chosen):
         return Estimates.empty()
-    at = np.searchsorted(labels, chosen)
+    at = labels.searchsorted(chosen)
     best, lab_w = heads[at], weight[at]
     n_det = n_det or {}
     visibility = visibility or {}

@@ -117,9 +117,9 @@ class ScanPoints:
         ``(order, angles[order], median spacing)``: the beams by ascending angle, computed
         once per scan for the p_D model's interval lookups.
         """
-        order = np.argsort(self.angles, kind='stable')
+        order = self.angles.argsort(kind='stable')
         ang = self.angles[order]
-        return order, ang, _median(np.diff(ang)) if len(ang) > 1 else 0.0
+        return order, ang, _median(ang[1:] - ang[:-1]) if len(ang) > 1 else 0.0
 
 
 def _median(x: np.ndarray) -> float:

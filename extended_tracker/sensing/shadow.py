@@ -108,10 +108,10 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         return np.zeros(k), bearing.copy()
     order, ang, step = scan.sorted_beams
     rng = beam_range[order]
-    lo = np.searchsorted(ang, bearing - half_angle, side='left')
-    hi = np.searchsorted(ang, bearing + half_angle, side='right')
+    lo = ang.searchsorted(bearing - half_angle, side='left')
+    hi = ang.searchsorted(bearing + half_angle, side='right')
     # an interval narrower than the beam spacing still sees its nearest beam
-    nearest = np.minimum(np.searchsorted(ang, bearing), len(ang) - 1)
+    nearest = np.minimum(ang.searchsorted(bearing), len(ang) - 1)
     empty = hi <= lo
     lo = np.where(empty, nearest, lo)
     hi = np.where(empty, nearest + 1, hi)
@@ -123,7 +123,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # intervals hold more beams than the range-minimum table costs (B log2 B).
     if np.add.reduce(width) > len(ang) * math.log2(max(len(ang), 2)):
         clear = _range_min(rng, lo, hi) >= thr
-        cum = np.concatenate([[0.0], np.cumsum(ang)])
+        cum = np.concatenate([[0.0], ang.cumsum()])
         free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
     else:
         clear = np.zeros(k, dtype=bool)
