@@ -284,3 +284,27 @@ def test_non_finite_detections_are_refused_with_a_clear_error():
     pts = np.array([[1.0, 2.0], [np.nan, 1.0], [1.05, np.inf]])
     with pytest.raises(ValueError, match='2 of 3 rows'):
         filter_step(state, pts, 0.1, CFG)
+
+
+def test_seeded_generator_restarts_like_a_new_one():
+    """
+    k-means draws from a cached generator put back to its seeded state: every call must
+    give what ``default_rng(seed)`` gives, whatever was drawn before, in any thread.
+    """
+    import threading
+
+    from extended_tracker.partition import _seeded_generator
+
+    def draws(seed):
+        return _seeded_generator(seed).random(5)
+
+    for seed in (0, 7, 0):
+        expected = np.random.default_rng(seed).random(5)
+        assert np.array_equal(draws(seed), expected)
+        _seeded_generator(seed + 1).random(3)          # another stream in between
+        assert np.array_equal(draws(seed), expected)
+    out = {}
+    thread = threading.Thread(target=lambda: out.update(d=draws(0)))
+    thread.start()
+    thread.join()
+    assert np.array_equal(out['d'], np.random.default_rng(0).random(5))
