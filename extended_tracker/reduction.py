@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import digamma, zeta
 
-from .ggiw import D, eig2, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
+from .ggiw import D, eig2, einsum, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -254,7 +254,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     heads = order[first]
     head = heads[gid]                                  # heaviest of each member's label
     e = mix.m[order, :2] - mix.m[head, :2]
-    d2 = np.einsum('ki,kij,kj->k', e, inv2(mix.P[heads, :2, :2])[gid], e)
+    d2 = einsum('ki,kij,kj->k', e, inv2(mix.P[heads, :2, :2])[gid], e)
     far_group = np.zeros(n_groups, dtype=bool)
     far_group[gid[d2 > merge_distance]] = True
     size = np.bincount(gid, minlength=n_groups)
@@ -274,7 +274,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         while len(remaining):
             j = remaining[0]
             e = mix.m[remaining, :2] - mix.m[j, :2]
-            d2 = np.einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
+            d2 = einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
             near = d2 <= merge_distance
             (multi if near.sum() > 1 else singles).append(remaining[near])
             remaining = remaining[~near]

@@ -17,7 +17,7 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
-    cell_stats, eig2, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
+    cell_stats, eig2, einsum, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
     update_pairs,
 )
 from .memo import cached_tables, read_only
@@ -692,7 +692,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     c = mix.m[heads, :2]
     inv_spread = _spread_inv(mix, heads)
     e = c[None, :, :] - c[:, None, :]                  # e[i, j] = c_j - c_i
-    d2 = np.einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
+    d2 = einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
     close = (np.maximum(d2, d2.T) <= merge_distance)
     np.fill_diagonal(close, False)
     if not close.any():
@@ -741,7 +741,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     order, is_head, group = mix.by_label()
     heads = order[is_head]
     e = mix.m[order, :2] - mix.m[heads[group], :2]
-    d2 = np.einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
+    d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
     if not far.any():

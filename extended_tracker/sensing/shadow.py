@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from ..ggiw import Mixture
+from ..ggiw import einsum, Mixture
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
@@ -57,9 +57,9 @@ def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
     np.cos(bearing, out=e[:, 0])
     np.sin(bearing, out=e[:, 1])
     u = e[:, ::-1] * _ACROSS                                     # across it
-    along = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', e, X, e), 0.0))
-    across = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, X, u), 0.0))
-    sigma = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, P[:, :2, :2], u), 0.0))
+    along = np.sqrt(np.maximum(einsum('ki,kij,kj->k', e, X, e), 0.0))
+    across = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, X, u), 0.0))
+    sigma = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, P[:, :2, :2], u), 0.0))
     half = np.empty((2, k))
     half[0] = across
     np.add(across, np.minimum(widen_sigmas * sigma, max_widen), out=half[1])
