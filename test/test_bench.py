@@ -41,7 +41,7 @@ def test_bench_help_lists_its_own_options(capsys):
         cli.main(['bench', '--help'])
     assert exc.value.code == 0
     out = capsys.readouterr().out
-    for option in ('--quick', '--memory', '--png', '--profile'):
+    for option in ('--quick', '--memory', '--png', '--profile', '--rounds'):
         assert option in out, option
 
 
@@ -52,3 +52,20 @@ def test_other_commands_still_refuse_unknown_options(capsys):
         cli.main(['results', '--bogus'])
     assert exc.value.code == 2
     assert 'unrecognized arguments: --bogus' in capsys.readouterr().err
+
+
+def test_target_rounds_report_every_case(capsys):
+    """Each target case is timed once per round; the table gives the rounds' spread and
+    how many of them met the case's targets."""
+    from extended_tracker.bench import bench_targets
+
+    pooled = bench_targets(rounds=2, scans=10, run_scans=10, warm=2)
+    out = capsys.readouterr().out
+    assert 'targets, 2 interleaved rounds' in out
+    for name in ('filter step, 4 pedestrians, 361 beams', 'filter step, 10 objects, 1081 beams',
+                 'S1 tutorial-like', 'S2 car', 'S3 stress'):
+        line = next(row for row in out.splitlines() if row.startswith(name))
+        assert line.rstrip().endswith(('0/2', '1/2', '2/2')), line
+    # two rounds of one run's 10 steps after its 2 warm-up steps, and of the 10 scans
+    # after the pipeline's 2 s of warm-up
+    assert [len(t) for t in pooled.values()] == [20, 20, 20, 20, 20]
