@@ -98,14 +98,16 @@ class StepResult:
     processing_time: float = 0.0
 
 
-def _diag_template():
-    d = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
+_DIAG = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
          'partitions': 0, 'cells': 0, 'pairs': 0,
          'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
          'capped_components': 0, 'oversized': 0, 'fused_labels': 0, 'relabelled': 0,
-         'beams': 0}
-    d.update({f'masked_{k}': 0 for k in INVALID_KINDS})
-    return d
+         'beams': 0, **{f'masked_{k}': 0 for k in INVALID_KINDS}}
+_MASKED_KEY = {k: f'masked_{k}' for k in INVALID_KINDS}
+
+
+def _diag_template():
+    return dict(_DIAG)
 
 
 def _card_of(state: PipelineState):
@@ -177,7 +179,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     diag = _diag_template()
     diag['beams'] = len(sp.angles)
     for k, v in sp.masked.items():
-        diag[f'masked_{k}'] = v
+        diag[_MASKED_KEY[k]] = v
     diag['detections'] = len(sp.points)
 
     # background: drop static returns, never those near confirmed tracks

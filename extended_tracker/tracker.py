@@ -263,17 +263,24 @@ def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
     """
     b = cfg.birth
     k = len(stats.n)
-    P = np.zeros((k, 4, 4))
-    P[:, 0, 0] = P[:, 1, 1] = area / (2.0 * np.pi)
-    P[:, 2, 2] = P[:, 3, 3] = b.velocity_std ** 2
+    P0, V0 = _birth_row(area, b.velocity_std, b.extent_semi_axis, b.dof)
     m = np.zeros((k, 4))
     m[:, :2] = stats.mean
-    X0 = (b.extent_semi_axis ** 2) * np.eye(2)
     v = np.full(k, b.dof)
-    V = np.broadcast_to((b.dof - IW_OFFSET) * X0, (k, 2, 2)).copy()
     alpha = np.full(k, b.rate_shape)
     beta = alpha / b.expected_rate
-    return Mixture(np.ones(k), alpha, beta, m, P, v, V, np.zeros(k, dtype=np.int64))
+    return Mixture(np.ones(k), alpha, beta, m, P0.repeat(k, axis=0), v, V0.repeat(k, axis=0),
+                   np.zeros(k, dtype=np.int64))
+
+
+@cached_tables(maxsize=16)             # constant while the field of view and config are
+def _birth_row(area: float, velocity_std: float, extent_semi_axis: float, dof: float):
+    """Position-velocity covariance (1, 4, 4) and IW scale (1, 2, 2) of a birth row."""
+    P = np.zeros((1, 4, 4))
+    P[:, 0, 0] = P[:, 1, 1] = area / (2.0 * np.pi)
+    P[:, 2, 2] = P[:, 3, 3] = velocity_std ** 2
+    X0 = (extent_semi_axis ** 2) * np.eye(2)
+    return P, ((dof - IW_OFFSET) * X0)[None]
 
 
 def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: TrackerConfig,
