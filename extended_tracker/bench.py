@@ -58,11 +58,12 @@ def bench_filter(counts, scans, warm=10, run_scans=60, beams=361, fov_deg=180.0)
     for n in counts:
         runs = _pedestrian_runs(n, max(1, scans // run_scans), run_scans, warm, beams, fov_deg)
         times, diags = _filter_times(runs, cfg, warm)
-        dets = [d.detections for d in diags]
+        dets = np.mean([d.detections for d in diags])
+        cells = np.mean([d.cells for d in diags])
+        parts = np.mean([d.partitions for d in diags])
         med, p99, _ = _stats(times)
-        rows.append((n, np.mean(dets), np.mean([d.cells for d in diags]), med))
-        print(f'{n:8d} {np.mean(dets):10.0f} {np.mean([d.cells for d in diags]):6.0f} '
-              f'{np.mean([d.partitions for d in diags]):10.1f} {med:9.2f} {p99:7.2f}')
+        rows.append((n, dets, cells, med))
+        print(f'{n:8d} {dets:10.0f} {cells:6.0f} {parts:10.1f} {med:9.2f} {p99:7.2f}')
     return rows
 
 
@@ -182,7 +183,7 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
     wide10 = _pedestrian_runs(10, n_runs, run_scans, warm, beams=1081, fov_deg=270.0)
     cases = [('filter step, 4 pedestrians, 361 beams',
               lambda: _filter_times(peds4, cfg, warm)[0], 1.5, None),
-             ('filter step, 10 objects, 1081 beams',
+             ('filter step, 10 pedestrians, 1081 beams',
               lambda: _filter_times(wide10, cfg, warm)[0], 5.0, None)]
     for (name, _, c, data), (med_t, p99_t) in zip(_pipeline_cases(scans),
                                                   [(2.0, 6.0), (6.0, 20.0), (None, 25.0)]):
@@ -204,7 +205,7 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
     for name, _, med_t, p99_t in cases:
         med, p99, _ = _stats(pooled[name])
         lo, hi = min(medians[name]), max(medians[name])
-        target = f'{"-" if med_t is None else f"{med_t:g}"} / {"-" if p99_t is None else f"{p99_t:g}"}'
+        target = ' / '.join('-' if t is None else f'{t:g}' for t in (med_t, p99_t))
         print(f'{name:40s} {med:9.2f} {p99:7.2f} {f"{lo:.2f}-{hi:.2f}":>17s} {target:>15s} '
               f'{f"{met[name]}/{rounds}":>10s}')
     return pooled

@@ -62,8 +62,9 @@ def test_target_rounds_report_every_case(capsys):
     pooled = bench_targets(rounds=2, scans=10, run_scans=10, warm=2)
     out = capsys.readouterr().out
     assert 'targets, 2 interleaved rounds' in out
-    for name in ('filter step, 4 pedestrians, 361 beams', 'filter step, 10 objects, 1081 beams',
-                 'S1 tutorial-like', 'S2 car', 'S3 stress'):
+    for name in ('filter step, 4 pedestrians, 361 beams',
+                 'filter step, 10 pedestrians, 1081 beams', 'S1 tutorial-like', 'S2 car',
+                 'S3 stress'):
         line = next(row for row in out.splitlines() if row.startswith(name))
         assert line.rstrip().endswith(('0/2', '1/2', '2/2')), line
     # two rounds of one run's 10 steps after its 2 warm-up steps, and of the 10 scans
