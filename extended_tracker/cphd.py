@@ -210,7 +210,7 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     cells, vals = [], []
     # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
     rows = feasible[pid] & ~single
-    if rows.any():
+    if np.logical_or.reduce(rows):
         u_ns = lse_last(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
         pr = pid[rows]
         cells.append(flat[rows])

@@ -68,7 +68,7 @@ class Mixture:
     label: np.ndarray
 
     def __len__(self) -> int:
-        return int(self.w.shape[0])
+        return len(self.w)
 
     def take(self, idx) -> 'Mixture':
         """Return the components at ``idx`` (index array or boolean mask)."""
@@ -94,8 +94,11 @@ class Mixture:
             return Mixture.empty()
         if len(parts) == 1:
             return parts[0]
-        return Mixture(*(np.concatenate([getattr(p, n) for p in parts])
-                         for n in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label')))
+        cat = np.concatenate
+        return Mixture(cat([p.w for p in parts]), cat([p.alpha for p in parts]),
+                       cat([p.beta for p in parts]), cat([p.m for p in parts]),
+                       cat([p.P for p in parts]), cat([p.v for p in parts]),
+                       cat([p.V for p in parts]), cat([p.label for p in parts]))
 
     def expected_extent(self, idx=None) -> np.ndarray:
         """

@@ -32,10 +32,10 @@ def lse1(a: np.ndarray) -> float:
     """``logsumexp`` of a 1-D float array, for the hot loops (no argument checking)."""
     if not a.size:
         return -np.inf
-    m = a.max()
+    m = np.maximum.reduce(a)
     if m == -np.inf:
         return -np.inf
-    return float(m + np.log(np.exp(a - m).sum()))
+    return float(m + np.log(np.add.reduce(np.exp(a - m))))
 
 
 def lse_last(a: np.ndarray) -> np.ndarray:

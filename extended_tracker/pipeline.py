@@ -208,7 +208,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
 
     pred = predict_state(filt, dt, cfg)
     vis = detection_model(pred.mixture, sp, cfg)
-    if vis.outside is not None and vis.outside.any():
+    if vis.outside is not None and np.logical_or.reduce(vis.outside):
         # objects that left the field of view or range can never be seen again here:
         # drop them rather than let them coast forever with p_D = 0
         keep_c = ~vis.outside

@@ -243,7 +243,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
 
     """
     keep = mix.w >= prune_weight
-    if not keep.all():
+    if not np.logical_and.reduce(keep):
         mix = mix.take(keep)
     if not len(mix):
         return mix, 0
@@ -281,7 +281,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     parts = [mix.take(np.concatenate(singles))]
     if absorbed:
         parts.append(mix.take(np.array([g[0] for g in absorbed])).with_weights(
-            np.array([mix.w[g].sum() for g in absorbed])))
+            np.array([np.add.reduce(mix.w[g]) for g in absorbed])))
     if multi:
         parts.append(merge_groups(mix, multi))
     merged = Mixture.concat(parts)

@@ -372,7 +372,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     upd, bupd = upd_all.take(slice(0, k)), upd_all.take(slice(k, None))
     p_d_pair = p_d[comp] if pair_p_d is None else pair_p_d(mix, comp, upd.m, upd.P)
     keep = p_d_pair > 0
-    if not keep.all():                 # 8 gathers saved on most scans
+    if not np.logical_and.reduce(keep):        # 8 gathers saved on most scans
         comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
         upd = upd.take(keep)
     diag.pairs = len(comp)
@@ -467,7 +467,7 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     reach = cfg.extraction.max_speed * (old.shown_elapsed[at] + new.dt)
     jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1))
                       > reach + cfg.extraction.jump_slack)
-    if not jumped.any():
+    if not np.logical_or.reduce(jumped):
         return new, est, 0
     bad = est.label[jumped]
     fresh = new.next_label + np.arange(len(bad))
@@ -751,7 +751,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
-    if not far.any():
+    if not np.logical_or.reduce(far):
         return mix, next_label
     heavy = far & (mix.w >= split_weight)
     label = mix.label.copy()
