@@ -147,7 +147,7 @@ LINKAGE_MAX = 1500      # up to this many detections: scipy's single linkage on 
 PAIR_INDEX_MAX = 128    # up to this many detections: cached pair indices instead of pdist
 
 
-@lru_cache(maxsize=PAIR_INDEX_MAX)
+@lru_cache(maxsize=32)               # the sizes of recent scans: at most ~4 MB of indices
 def _pair_index(n: int):
     """Row and column of every pair ``i < j`` of ``n`` points, in ``pdist``'s order."""
     i, j = np.triu_indices(n, 1)
