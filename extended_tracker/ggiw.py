@@ -15,7 +15,7 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy.special import gammaln
@@ -264,6 +264,12 @@ def cv_matrices(dt: float, sigma_accel: float):
     return F, sigma_accel ** 2 * Q
 
 
+@lru_cache(maxsize=256)                # scan periods jitter in recordings
+def _forgetting(dt: float, tau: float):
+    """``exp(-dt / tau)``, the factor a step of ``dt`` s keeps of a time constant ``tau``."""
+    return np.exp(-dt / tau)
+
+
 def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_rate: float,
             tau_extent: float) -> Mixture:
     """
@@ -294,8 +300,8 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
     F, Q = cv_matrices(dt, sigma_accel)
     m = mix.m @ F.T
     P = symmetrize(F @ mix.P @ F.T + Q)
-    k_rate = np.exp(-dt / tau_rate)
-    k_ext = np.exp(-dt / tau_extent)
+    k_rate = _forgetting(dt, tau_rate)
+    k_ext = _forgetting(dt, tau_extent)
     v_new = IW_OFFSET + k_ext * (mix.v - IW_OFFSET)
     V_new = mix.V * ((v_new - IW_OFFSET) / (mix.v - IW_OFFSET))[:, None, None]
     return Mixture(mix.w * p_survival ** dt, mix.alpha * k_rate, mix.beta * k_rate, m, P,

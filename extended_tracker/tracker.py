@@ -746,6 +746,8 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     if not len(mix):
         return mix, next_label
     order, is_head, group = mix.by_label()
+    if np.logical_and.reduce(is_head):
+        return mix, next_label                         # one component a label (most scans)
     heads = order[is_head]
     e = mix.m[order, :2] - mix.m[heads[group], :2]
     d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
