@@ -274,7 +274,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     else:
         log_psi = np.full(n_cells, NEG_INF)
     log_a = log_psi - cell_log_c
-    k_most = max((len(p) for p in partitions), default=0)
+    k_most = max(map(len, partitions), default=0)
     T = _log_lambda_table(log_q0, n_max, k_most)
     lf = _log_factorial(k_most + 1)
     need = k_most + 1
@@ -293,7 +293,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     log_u_cell = np.full(n_cells, NEG_INF)
     if n_part:
         # flatten: one row per (partition, cell)
-        sizes = np.fromiter((len(p) for p in partitions), dtype=np.int64, count=n_part)
+        sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
         flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in partitions])
         pid = np.repeat(np.arange(n_part), sizes)
         single = cell_size[flat] == 1

@@ -389,7 +389,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                  [_birth_log_miss_factor(cfg)]])
     cell_log_c = -stats.n * np.log(area)
     if mc.mode == 'cphd':
-        k_most = max((len(p) for p in pset.partitions), default=0)
+        k_most = max(map(len, pset.partitions), default=0)
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
                           state.log_card, _clutter_log_pmf(mc.clutter_rate, k_most + 1))
     else:
