@@ -358,8 +358,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     # existing components: gated (component, cell) pairs
     comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg))
-    hidden = None if visibility is None else np.minimum(np.maximum(1.0 - visibility, 0.0),
-                                                          1.0)
+    hidden = None
+    if visibility is not None:
+        hidden = np.minimum(np.maximum(1.0 - visibility, 0.0), 1.0)
     # existing components and the birth row (one GGIW per cell) in one batched update
     birth_prior = _birth_prior(stats, cfg, area)
     both = Mixture.concat([mix, birth_prior]) if n_comp else birth_prior
