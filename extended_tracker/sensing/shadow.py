@@ -63,8 +63,8 @@ def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
     half = np.empty((2, k))
     half[0] = across
     np.add(across, np.minimum(widen_sigmas * sigma, max_widen), out=half[1])
-    # asin(half / r) where the sensor is outside the half-width, else a half turn (the
-    # division is skipped there: r may be 0)
+    # asin(half / r) where the sensor lies outside the half-width, else pi / 2 (asin 1;
+    # the division is skipped there: r may be 0)
     ratio = np.divide(half, r, out=np.ones((2, k)), where=r > half)
     half_angle = np.arcsin(np.minimum(np.maximum(ratio, 0.0), 1.0))
     return bearing, half_angle[0], half_angle[1], np.maximum(r - along, 0.0), r + along, r, u
