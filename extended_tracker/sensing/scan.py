@@ -121,6 +121,12 @@ class ScanPoints:
         ang = self.angles[order]
         return order, ang, _median(ang[1:] - ang[:-1]) if len(ang) > 1 else 0.0
 
+    @cached_property
+    def sorted_ranges(self) -> np.ndarray:
+        """``ranges`` in the order of :attr:`sorted_beams` (the p_D model reads them twice
+        a scan)."""
+        return self.ranges[self.sorted_beams[0]]
+
 
 def _median(x: np.ndarray) -> float:
     """``np.median`` of a 1-D array (the same value) without its dispatch: the mean of the

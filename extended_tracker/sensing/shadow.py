@@ -107,7 +107,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     if k == 0 or len(scan.angles) == 0:
         return np.zeros(k), bearing.copy()
     order, ang, step = scan.sorted_beams
-    rng = beam_range[order]
+    rng = scan.sorted_ranges if beam_range is scan.ranges else beam_range[order]
     lo = ang.searchsorted(bearing - half_angle, side='left')
     hi = ang.searchsorted(bearing + half_angle, side='right')
     # an interval narrower than the beam spacing still sees its nearest beam
