@@ -65,35 +65,54 @@ def _solve_nu(target, lo, hi, start, iters=60):
     Root of ``f(nu) = d log nu - sum_j digamma((nu - j + 1)/2) - target`` (decreasing)
     in ``[lo, hi]``, one per entry: the end of the bracket where the root lies outside it.
 
-    Newton from ``start``, kept inside a bracket that every evaluation of ``f`` narrows
-    (bisection where a step would leave it). Members with near-singular scale matrices
-    (a wall seen as a line) can make ``f`` positive everywhere: unbounded, Newton ran
-    to ``nu = 4e27``.
+    Newton steps in ``u = 1 / nu``, kept inside a bracket that every evaluation of ``f``
+    narrows (bisection where a step would leave it). Members with near-singular scale
+    matrices (a wall seen as a line) can make ``f`` positive everywhere: unbounded, Newton
+    ran to ``nu = 4e27``. Entries whose root lies outside the bracket take its end without
+    iterating.
+
+    Notes
+    -----
+    For large ``nu``, ``f(nu) ~ d log 2 + d (d + 1) / (2 nu) - target``: nearly linear in
+    ``u``, so Newton in ``u`` converges in two or three steps where Newton in ``nu`` took
+    up to twenty. The same expansion, shifted by 0.75 (exact to 1 % for ``d = 2`` and
+    ``nu >= 3``), gives the first iterate; ``start`` serves where it is not positive.
     """
     hi = np.maximum(hi, lo)
+    k = len(target)
 
-    def f(nu):
+    def f(nu, t):
         x = 0.5 * nu[:, None] - _HALF_J
-        return D * np.log(nu) - digamma(x).sum(axis=1) - target, x
+        return D * np.log(nu) - digamma(x).sum(axis=1) - t, x
 
-    f_lo, _ = f(lo)
-    f_hi, _ = f(hi)
-    nu = np.clip(start, lo, hi)
-    a, b = lo.copy(), hi.copy()
+    ends, _ = f(np.concatenate([lo, hi]), np.concatenate([target, target]))
+    below, above_hi = ends[:k] <= 0, ends[k:] >= 0
+    out = np.where(below, lo, np.where(above_hi, hi, 0.0))
+    free = ~(below | above_hi)
+    if not np.logical_or.reduce(free):
+        return out
+    t, a, b = target[free], lo[free], hi[free]
+    excess = t - D * np.log(2.0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        guess = 0.5 * D * (D + 1) / excess + 0.75
+    nu = np.minimum(np.maximum(np.where(excess > 0, guess, start[free]), a), b)
     for _ in range(iters):
-        val, x = f(nu)
+        val, x = f(nu, t)
         above = val > 0                                # the root is above nu
         a = np.where(above, nu, a)
         b = np.where(above, b, nu)
         fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
         with np.errstate(divide='ignore', invalid='ignore'):    # fp = 0: bisection below
-            nxt = nu - val / fp
-        nxt = np.where((nxt > a) & (nxt < b), nxt, 0.5 * (a + b))
+            nxt = nu / (1.0 + val / (nu * fp))                   # u - g(u) / g'(u)
+        # inclusive: at the root (val == 0) the step stays on an end of the bracket,
+        # and bisecting from there wanders off the root for a dozen steps
+        nxt = np.where((nxt >= a) & (nxt <= b), nxt, 0.5 * (a + b))
         done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
         nu = nxt
         if done:
             break
-    return np.where(f_lo <= 0, lo, np.where(f_hi >= 0, hi, nu))
+    out[free] = nu
+    return out
 
 
 def _floor_extent(V, v):
