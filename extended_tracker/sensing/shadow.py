@@ -96,16 +96,19 @@ def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray
     return np.minimum(table[lev, lo], table[lev, np.maximum(hi - span, lo)])
 
 
-def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range, margin):
+def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range, margin,
+                      with_mean: bool = True):
     """
-    Fraction of the beams in each component's interval not blocked by a nearer return.
+    Fraction of the beams in each component's interval not blocked by a nearer return,
+    and the mean angle of the unblocked ones (``bearing`` where none is; ``None`` when
+    ``with_mean`` is false, which saves its sums).
 
     ``beam_range`` (B,) holds, per beam in message order, the range that may block (inf
     where nothing does). Beams of the interval outside the field of view count as hidden.
     """
     k = len(bearing)
     if k == 0 or len(scan.angles) == 0:
-        return np.zeros(k), bearing.copy()
+        return np.zeros(k), (bearing.copy() if with_mean else None)
     order, ang, step = scan.sorted_beams
     rng = scan.sorted_ranges if beam_range is scan.ranges else beam_range[order]
     lo = ang.searchsorted(bearing - half_angle, side='left')
@@ -123,8 +126,9 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # intervals hold more beams than the range-minimum table costs (B log2 B).
     if np.add.reduce(width) > len(ang) * math.log2(max(len(ang), 2)):
         clear = _range_min(rng, lo, hi) >= thr
-        cum = np.concatenate([[0.0], ang.cumsum()])
-        free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
+        if with_mean:
+            cum = np.concatenate([[0.0], ang.cumsum()])
+            free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
     else:
         clear = np.zeros(k, dtype=bool)
         free_sum = np.zeros(k)
@@ -137,10 +141,14 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         idx = np.minimum(idx, len(ang) - 1)
         blocked = (rng[idx] < thr[ni, None]) & inside
         blocked_n[ni] = blocked.sum(axis=1)
-        free_sum[ni] = np.where(inside & ~blocked, ang[idx], 0.0).sum(axis=1)
+        if with_mean:
+            free_sum[ni] = np.where(inside & ~blocked, ang[idx], 0.0).sum(axis=1)
     frac_visible = 1.0 - blocked_n / width
-    n_free = width - blocked_n
-    mean_free = np.where(n_free > 0, free_sum / np.maximum(n_free, 1), bearing)
+    if with_mean:
+        n_free = width - blocked_n
+        mean_free = np.where(n_free > 0, free_sum / np.maximum(n_free, 1), bearing)
+    else:
+        mean_free = None
     # part of the interval outside the field of view is not seen at all
     step = max(step, 1e-9)
     span = 2 * half_angle
@@ -276,5 +284,5 @@ def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.nda
     bearing, _, half_widened, r_near, *_ = _geometry(
         m_updated, mix.expected_extent(comp), P_updated, det.widen_sigmas, det.max_widen)
     visible, _ = _visible_fraction(bearing, half_widened, r_near, scan, scan.ranges,
-                                   det.shadow_margin)
+                                   det.shadow_margin, with_mean=False)
     return det.p_d0 * _seen(visible, r_near, scan, det)
