@@ -17,7 +17,6 @@ spanning tree of the radius-``d_max`` graph, so all partitions come from one MST
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
 import threading
 
 import numpy as np
@@ -144,15 +143,13 @@ def single_linkage(y: np.ndarray, n: int) -> np.ndarray:
 
 
 LINKAGE_MAX = 1500      # up to this many detections: scipy's single linkage on all pairs
-PAIR_INDEX_MAX = 128    # up to this many detections: cached pair indices instead of pdist
+PAIR_INDEX_MAX = 128    # up to this many detections: a masked distance matrix, not pdist
 
 
-@lru_cache(maxsize=32)               # the sizes of recent scans: at most ~4 MB of indices
-def _pair_index(n: int):
-    """Row and column of every pair ``i < j`` of ``n`` points, in ``pdist``'s order."""
-    i, j = np.triu_indices(n, 1)
-    i.flags.writeable = j.flags.writeable = False
-    return i, j
+# the pairs i < j of up to PAIR_INDEX_MAX points in pdist's (row-major) order: the mask
+# of n points is this one's top-left n x n block (16 kB, built once)
+_UPPER = np.triu(np.ones((PAIR_INDEX_MAX, PAIR_INDEX_MAX), dtype=bool), 1)
+_UPPER.flags.writeable = False
 
 
 def condensed_distances(points: np.ndarray) -> np.ndarray:
@@ -160,20 +157,23 @@ def condensed_distances(points: np.ndarray) -> np.ndarray:
     ``scipy.spatial.distance.pdist(points)`` (Euclidean, the same values bit for bit: a
     test holds them equal).
 
-    Up to ``PAIR_INDEX_MAX`` points the pairs are read from cached indices: pdist's
-    argument checks and array-API dispatch cost more than its arithmetic at a few dozen
-    returns. Larger scans call pdist, whose memory stays at one value per pair.
+    Up to ``PAIR_INDEX_MAX`` points the full distance matrix is read through the upper
+    triangle mask: pdist's argument checks and array-API dispatch cost more than its
+    arithmetic at a few dozen returns. Larger scans call pdist, whose memory stays at one
+    value per pair.
     """
     n = len(points)
     if n > PAIR_INDEX_MAX:
         return pdist(points)
-    i, j = _pair_index(n)
     x, y = points[:, 0], points[:, 1]
-    dx, dy = x[i] - x[j], y[i] - y[j]           # one coordinate at a time: 5x faster than rows
+    dx, dy = x[:, None] - x, y[:, None] - y      # one coordinate at a time: 5x faster than rows
     dx *= dx
     dy *= dy
     dx += dy
-    return np.sqrt(dx, out=dx)
+    d2 = dx[_UPPER[:n, :n]]
+    return np.sqrt(d2, out=d2)
+
+
 DENSE_PAIRS_PER_POINT = 16   # beyond this many pairs within d_max per point: Delaunay edges
 
 
