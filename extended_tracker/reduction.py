@@ -7,7 +7,7 @@ Gamma merge: match ``E[gamma]`` and ``E[log gamma]`` (Granström & Orguner, "Est
 and maintenance of measurement rates for multiple extended target tracking", FUSION 2012).
 Inverse Wishart merge: match ``E[X^-1]`` and ``E[log|X|]`` (Granström & Orguner, "On the
 reduction of Gaussian inverse Wishart mixtures", FUSION 2012); ``v`` solves a scalar
-equation, by bisection here (monotone, vectorised).
+equation (monotone) by bracketed Newton steps, vectorised over the merges.
 
 """
 
