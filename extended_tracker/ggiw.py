@@ -14,13 +14,13 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import cached_property, lru_cache
 
 import numpy as np
 from scipy.special import gammaln
 
-from .memo import cached_tables, read_only
+from .memo import cached_tables, evolve, read_only
 
 try:
     # numpy's C einsum: np.einsum wraps it in Python only to offer ``optimize``, which
@@ -77,7 +77,7 @@ class Mixture:
 
     def with_weights(self, w) -> 'Mixture':
         """Return a copy with new weights."""
-        return replace(self, w=np.asarray(w, dtype=float))
+        return evolve(self, w=np.asarray(w, dtype=float))
 
     @staticmethod
     def empty() -> 'Mixture':

@@ -1,5 +1,6 @@
 """
-Read-only shared arrays and the memoising decorator of the filter's constant tables.
+Read-only shared arrays, the memoising decorator of the filter's constant tables, and a
+lean ``dataclasses.replace`` for the per-scan state objects.
 
 Kept apart from the GGIW module: the CPHD update, which takes no GGIW detail, uses it too.
 """
@@ -33,3 +34,24 @@ def cached_tables(maxsize: int):
         cached.uncached = fn
         return cached
     return decorate
+
+
+def evolve(obj, **changes):
+    """
+    ``dataclasses.replace(obj, **changes)`` for a frozen dataclass whose ``__init__`` only
+    stores its fields (no ``__post_init__``, ``InitVar`` or ``init=False`` field), without
+    replace's per-field Python loop: 0.7 against 2.4 us, and a scan makes several.
+
+    Only the fields are copied, so cached properties of ``obj`` are not carried over.
+    """
+    cls = type(obj)
+    fields = cls.__dataclass_fields__
+    if not changes.keys() <= fields.keys():
+        unknown = sorted(changes.keys() - fields.keys())
+        raise TypeError(f'{cls.__name__} has no field {unknown[0]!r}')
+    new = object.__new__(cls)
+    d, src = new.__dict__, obj.__dict__
+    for name in fields:
+        d[name] = src[name]
+    d.update(changes)
+    return new

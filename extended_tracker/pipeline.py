@@ -26,13 +26,14 @@ with event ``foreign_frame``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 import time
 
 import numpy as np
 
 from .config import TrackerConfig
 from .errors import ScanError
+from .memo import evolve
 from .sensing.background import BackgroundState, protected_beams, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability
@@ -124,7 +125,7 @@ def _repeat(state, scan_stamp, frame, event, error, t0, diag=None):
 
 def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
     """A fresh filter whose labels continue after the old ones (ids are never reused)."""
-    return replace(FilterState.initial(cfg), next_label=filt.next_label)
+    return evolve(FilterState.initial(cfg), next_label=filt.next_label)
 
 
 def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState, StepResult]:
@@ -212,8 +213,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         # objects that left the field of view or range can never be seen again here:
         # drop them rather than let them coast forever with p_D = 0
         keep_c = ~vis.outside
-        pred = replace(pred, mixture=pred.mixture.take(keep_c))
-        vis = replace(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
+        pred = evolve(pred, mixture=pred.mixture.take(keep_c))
+        vis = evolve(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
                       rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
                       offset=vis.offset[keep_c], outside=vis.outside[keep_c])
         diag['left_view'] = len(keep_c) - int(np.count_nonzero(keep_c))
@@ -227,7 +228,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
               'capped_cells', 'capped_components', 'oversized', 'fused_labels', 'relabelled'):
         diag[k] = getattr(fdiag, k)
-    new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,
+    new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
                         frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
                         elapsed=state.elapsed + dt)
     card, mean = _card_of(new_state)

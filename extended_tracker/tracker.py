@@ -8,7 +8,7 @@ the per-scan pipeline (:mod:`extended_tracker.pipeline`) call :func:`predict_sta
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
 import numpy as np
@@ -20,7 +20,7 @@ from .ggiw import (
     cell_stats, eig2, einsum, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
     update_pairs,
 )
-from .memo import cached_tables, read_only
+from .memo import cached_tables, evolve, read_only
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
 
@@ -221,7 +221,7 @@ def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterSt
     p_s = mc.p_survival ** dt
     birth_mean = float(np.sum(regions.w)) + birth_intensity(cfg, dt)
     log_card = predict_cardinality(state.log_card, p_s, birth_mean)
-    return replace(state, mixture=Mixture.concat([survivors, regions]), log_card=log_card,
+    return evolve(state, mixture=Mixture.concat([survivors, regions]), log_card=log_card,
                    next_label=next_label, dt=dt)
 
 
@@ -432,7 +432,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     diag.capped_components = capped
     diag.components = len(reduced)
 
-    new_state = replace(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
+    new_state = evolve(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
     candidates = extract(new_state, cfg, n_det, vis_of)
     new_state, candidates, diag.relabelled = _relabel_jumps(state, new_state, candidates, cfg)
     new_state = _record_reports(state, new_state, candidates)
@@ -481,9 +481,9 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     # the fresh labels are the largest: move them to the end, so the estimates stay in
     # ascending label order as extract gives them (the shown record searches them)
     order = est_label.argsort(kind='stable')
-    return (replace(new, mixture=replace(mix, label=label),
+    return (evolve(new, mixture=evolve(mix, label=label),
                     next_label=new.next_label + len(bad)),
-            replace(est, label=est_label).take(order), len(bad))
+            evolve(est, label=est_label).take(order), len(bad))
 
 
 def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> FilterState:
@@ -494,7 +494,7 @@ def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> Fil
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     elapsed = np.concatenate([old.shown_elapsed[keep] + new.dt, np.zeros(len(shown))])
     order = label.argsort(kind='stable')
-    return replace(new, shown=label[order], shown_pos=pos[order],
+    return evolve(new, shown=label[order], shown_pos=pos[order],
                    shown_elapsed=elapsed[order])
 
 
@@ -529,7 +529,7 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
         i = index.get(lab)
         if i is not None:
             travel[j] = max(travel[j], old.reported_travel[i])
-    return replace(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
+    return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
                    reported_travel=travel, reported_age=age)
 
 
@@ -732,7 +732,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     target[cand] = cand[into]
     label = mix.label.copy()
     label[order] = labels[target[group]]
-    return replace(mix, label=label), fused
+    return evolve(mix, label=label), fused
 
 
 def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next_label: int):
@@ -763,7 +763,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     new = new[(-mix.w[new]).argsort(kind='stable')]
     label[new] = next_label + np.arange(len(new))
     keep = ~(far & ~heavy)
-    return replace(mix, label=label).take(keep), next_label + len(new)
+    return evolve(mix, label=label).take(keep), next_label + len(new)
 
 
 def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None) -> Estimates:

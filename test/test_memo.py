@@ -1,0 +1,68 @@
+"""
+``memo.evolve`` against ``dataclasses.replace`` on the state objects it stands in for.
+"""
+
+import dataclasses
+import inspect
+
+import numpy as np
+import pytest
+
+from extended_tracker.config import from_dict
+from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.memo import evolve
+from extended_tracker.pipeline import PipelineState
+from extended_tracker.sensing.shadow import Visibility
+from extended_tracker.tracker import Estimates, FilterState
+
+
+def _mixture():
+    k = 3
+    V = (10.0 - IW_OFFSET) * np.repeat((0.3 ** 2 * np.eye(2))[None], k, axis=0)
+    return Mixture(np.array([0.9, 0.5, 0.2]), np.full(k, 20.0), np.full(k, 2.0),
+                   np.arange(4 * k, dtype=float).reshape(k, 4),
+                   np.repeat(np.eye(4)[None], k, axis=0), np.full(k, 10.0), V,
+                   np.array([1, 1, 2]))
+
+
+def _same(a, b):
+    assert type(a) is type(b)
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray):
+            assert x is y or np.array_equal(x, y)
+        else:
+            assert x is y or x == y
+
+
+@pytest.mark.parametrize('make, changes', [
+    (_mixture, {'w': np.ones(3)}),
+    (_mixture, {'label': np.array([4, 5, 6])}),
+    (lambda: FilterState.initial(from_dict({})), {'next_label': 7, 'dt': 0.05}),
+    (lambda: PipelineState.initial(from_dict({})), {'scans': 3, 'elapsed': 0.3}),
+    (lambda: Visibility(np.ones(2), np.ones(2), None), {'p_d': np.zeros(2)}),
+    (Estimates.empty, {'label': np.zeros(0, np.int64)}),
+])
+def test_evolve_equals_replace(make, changes):
+    obj = make()
+    _same(evolve(obj, **changes), dataclasses.replace(obj, **changes))
+    _same(evolve(obj), dataclasses.replace(obj))
+
+
+@pytest.mark.parametrize('cls', [Mixture, FilterState, PipelineState, Visibility, Estimates])
+def test_evolved_classes_only_store_their_fields(cls):
+    """What evolve skips (``__init__``) must have nothing else to do."""
+    assert not hasattr(cls, '__post_init__')
+    # no InitVar (an extra parameter) and no init=False field (a missing one)
+    params = list(inspect.signature(cls.__init__).parameters)[1:]
+    assert params == [f.name for f in dataclasses.fields(cls)]
+
+
+def test_evolve_rejects_unknown_fields_and_leaves_cached_properties_behind():
+    mix = _mixture()
+    with pytest.raises(TypeError, match='no field'):
+        evolve(mix, weight=np.ones(3))
+    before = mix.expected_extent()                 # cached on mix
+    wider = evolve(mix, V=2 * mix.V)
+    assert np.allclose(wider.expected_extent(), 2 * before)
+    assert np.array_equal(mix.expected_extent(), before)
