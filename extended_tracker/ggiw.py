@@ -440,7 +440,14 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     S = Ppos + Y / n[:, None, None]
     if hidden is not None:
         S = S + (hidden[comp] ** 2)[:, None, None] * X
-    S_inv = inv2(S)
+    # The 2x2 helpers work matrix by matrix, so the matrices they need go through them
+    # stacked: one call each instead of three or five (the same values, some 60 fewer
+    # numpy calls a step).
+    k = len(n)
+    roots = sqrtm_spd2(np.concatenate([X, S, Y]))              # X^1/2, S^1/2, Y^1/2
+    inverses = inv2(np.concatenate([S, roots[k:]]))            # S^-1, S^-1/2, Y^-1/2
+    X_half, S_inv, S_ihalf, Y_ihalf = (roots[:k], inverses[:k], inverses[k:2 * k],
+                                       inverses[2 * k:])
     PHt = P[:, :, :2]                                  # P H^T, (k, 4, 2)
     K = PHt @ S_inv                                    # (k, 4, 2)
     eps = zbar - m[:, :2]
@@ -449,9 +456,6 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     m_new = m + einsum('kij,kj->ki', K, eps)
     P_new = symmetrize(P - K @ S @ K.swapaxes(1, 2))
 
-    X_half = sqrtm_spd2(X)
-    S_ihalf = inv2(sqrtm_spd2(S))
-    Y_ihalf = inv2(sqrtm_spd2(Y))
     u = einsum('kij,kj->ki', X_half @ S_ihalf, eps)
     N_hat = u[:, :, None] * u[:, None, :]
     M = X_half @ Y_ihalf
@@ -461,11 +465,8 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
 
     beta_eff = beta / f
     alpha_new = alpha + n
-    logdet_V = logdet_spd2(V)
-    logdet_Vn = logdet_spd2(V_new)
-    logdet_X = logdet_spd2(X)
-    logdet_Y = logdet_spd2(Y)
-    logdet_S = logdet_spd2(S)
+    logdet_V, logdet_Vn, logdet_X, logdet_Y, logdet_S = logdet_spd2(
+        np.concatenate([V, V_new, X, Y, S])).reshape(5, k)
     log_lik = (
         # Gamma-Poisson: E[e^{-gamma} gamma^n] under Gam(alpha, beta_eff)
         gammaln(alpha_new) - gammaln(alpha) + alpha * np.log(beta_eff)
