@@ -370,18 +370,20 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                            _pad(rate_scale, n_cells, 1.0), _pad(hidden, n_cells, 0.0),
                            _pad(centroid_offset, n_cells, 0.0))
     k = len(comp)
-    upd, bupd = upd_all.take(slice(0, k)), upd_all.take(slice(k, None))
-    p_d_pair = p_d[comp] if pair_p_d is None else pair_p_d(mix, comp, upd.m, upd.P)
+    pair_lik, birth_lik = upd_all.log_lik[:k], upd_all.log_lik[k:]
+    p_d_pair = (p_d[comp] if pair_p_d is None
+                else pair_p_d(mix, comp, upd_all.m[:k], upd_all.P[:k]))
     keep = p_d_pair > 0
-    if not np.logical_and.reduce(keep):        # 8 gathers saved on most scans
-        comp, cell, p_d_pair = comp[keep], cell[keep], p_d_pair[keep]
-        upd = upd.take(keep)
+    pair_rows = None                           # rows of upd_all holding the pairs kept
+    if not np.logical_and.reduce(keep):
+        pair_rows = keep.nonzero()[0]
+        comp, cell, p_d_pair, pair_lik = comp[keep], cell[keep], p_d_pair[keep], pair_lik[keep]
     diag.pairs = len(comp)
     log_pd0 = _log_constant(cfg.detection.p_d0)
 
     log_g = np.full((n_comp + 1, n_cells), NEG_INF)
-    log_g[comp, cell] = np.log(p_d_pair) + upd.log_lik
-    log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + bupd.log_lik,
+    log_g[comp, cell] = np.log(p_d_pair) + pair_lik
+    log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + birth_lik,
                                 NEG_INF)
     mu_b = birth_intensity(cfg, state.dt)
     with np.errstate(divide='ignore'):
@@ -401,16 +403,19 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     prune = cfg.reduction.prune_weight
     w_missed = np.exp(out.log_w_missed[:n_comp])
     w_det = np.exp(out.log_w_detected[comp, cell])
-    sel = w_det >= prune
-    detected = upd.take(sel).mixture(w_det[sel], mix.label[comp[sel]])
+    sel = (w_det >= prune).nonzero()[0]
     w_birth = np.exp(out.log_w_detected[n_comp, :])
     bsel = (w_birth >= cfg.birth.min_weight).nonzero()[0]
     born, next_label = _label_births(pset, bsel, state.next_label,
                                      *_cell_claims(mix, comp, cell, w_det, n_cells),
                                      w_birth)
-    births = bupd.take(bsel).mixture(w_birth[bsel], born)
     diag.births = len(set(born.tolist()))
-    posterior = Mixture.concat([mix.with_weights(w_missed), detected, births])
+    # the detected pairs kept, then the births: one gather from the batched update
+    rows = np.concatenate([sel if pair_rows is None else pair_rows[sel], k + bsel])
+    posterior = Mixture.concat([
+        mix.with_weights(w_missed),
+        upd_all.take(rows).mixture(np.concatenate([w_det[sel], w_birth[bsel]]),
+                                   np.concatenate([mix.label[comp[sel]], born]))])
 
     n_det = _detections_per_label(mix, comp, cell, w_det, w_missed, stats)
     vis_of = {}
