@@ -482,6 +482,11 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     return PairUpdate(log_lik, alpha_new, beta + f, m_new, P_new, v_new, V_new)
 
 
+def gate_covariance(mix: Mixture, rho: float, R: np.ndarray) -> np.ndarray:
+    """``H P H^T + (1 + rho) X + R`` of every component: the gate of :func:`gate_pairs`."""
+    return mix.P[:, :2, :2] + (1.0 + rho) * mix.expected_extent() + R
+
+
 def log_miss_factor(mix: Mixture, p_d: np.ndarray, rate_scale: np.ndarray | None = None):
     """
     Return ``log q_D = log(1 - p_D + p_D (beta_eff / (beta_eff + 1))^alpha)`` per component.
@@ -498,9 +503,13 @@ def log_miss_factor(mix: Mixture, p_d: np.ndarray, rate_scale: np.ndarray | None
     return np.log1p(p_d * np.expm1(log_e0))
 
 
-def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, threshold: float):
+def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, threshold: float,
+               gate_inv: np.ndarray | None = None):
     """
     Return ``(comp, cell)`` index arrays of the pairs inside the gate.
+
+    ``gate_inv`` (n, 2, 2), if given, is the inverse of :func:`gate_covariance`, computed by
+    the caller along with other inverses.
 
     Notes
     -----
@@ -512,9 +521,7 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
     nc, ncell = len(mix), len(stats.n)
     if nc == 0 or ncell == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    X = mix.expected_extent()
-    G = mix.P[:, :2, :2] + (1.0 + rho) * X + R
-    Gi = inv2(G)
+    Gi = inv2(gate_covariance(mix, rho, R)) if gate_inv is None else gate_inv
     e = stats.mean[None, :, :] - mix.m[:, None, :2]          # (nc, ncell, 2)
     d2 = (Gi[:, None, 0, 0] * e[..., 0] ** 2 + 2 * Gi[:, None, 0, 1] * e[..., 0] * e[..., 1]
           + Gi[:, None, 1, 1] * e[..., 1] ** 2)

@@ -17,8 +17,8 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
-    cell_stats, eig2, einsum, gate_pairs, inv2, IW_OFFSET, log_miss_factor, Mixture, predict,
-    update_pairs,
+    cell_stats, eig2, einsum, gate_covariance, gate_pairs, inv2, IW_OFFSET, log_miss_factor,
+    Mixture, predict, update_pairs,
 )
 from .memo import cached_tables, evolve, read_only
 from .partition import build_partitions, find_root, union_min
@@ -230,19 +230,27 @@ def birth_intensity(cfg: TrackerConfig, dt: float) -> float:
     return cfg.birth.rate * max(dt, 1e-3)
 
 
-def confident_predictions(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
-    """Centres, gates and rates of the heaviest component of each heavy label."""
+def _gates(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
+    """
+    Inverse gate covariances of every component (for :func:`gate_pairs`) and the
+    confident predictions for partitioning: centres, gates and rates of the heaviest
+    component of each label of weight ``>= min_weight`` (None if there is none). Both
+    sets of 2x2 matrices are inverted in one call.
+    """
     if not len(mix):
-        return None
+        return None, None
+    R = sensor_noise(cfg)
+    G = gate_covariance(mix, cfg.model.rho, R)
     order, is_head, _ = mix.by_label()
     best = order[is_head]
     best = best[mix.w[best] >= min_weight]
     if not len(best):
-        return None
-    G = mix.P[best, :2, :2] + mix.expected_extent(best) + sensor_noise(cfg)
-    return {
+        return inv2(G), None
+    n = len(mix)
+    inverses = inv2(np.concatenate([G, mix.P[best, :2, :2] + mix.expected_extent(best) + R]))
+    return inverses[:n], {
         'centre': mix.m[best, :2],
-        'gate_inv': inv2(G),
+        'gate_inv': inverses[n:],
         'gate': gate_threshold(cfg),
         'rate': mix.expected_rate()[best],
     }
@@ -348,7 +356,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     p_d = np.asarray(p_d, dtype=float).reshape(n_comp)
     if rate_scale is not None:
         rate_scale = np.maximum(np.asarray(rate_scale, dtype=float), 1e-3)
-    pset = build_partitions(points, cfg.partition, confident_predictions(mix, cfg))
+    gate_inv, confident = _gates(mix, cfg)
+    pset = build_partitions(points, cfg.partition, confident)
     diag.partitions = len(pset.partitions)
     diag.cells = len(pset.cells)
     diag.capped_partitions = pset.capped_partitions
@@ -357,7 +366,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     n_cells = len(pset.cells)
 
     # existing components: gated (component, cell) pairs
-    comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg))
+    comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg), gate_inv)
     hidden = None
     if visibility is not None:
         hidden = np.minimum(np.maximum(1.0 - visibility, 0.0), 1.0)
