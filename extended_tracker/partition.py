@@ -451,27 +451,62 @@ def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> 
         return pset
     dist, dropped = distance_partitions(points, cfg.d_min, cfg.d_max, cfg.max_partitions)
     pset.capped_partitions += dropped
+    middle = dist[len(dist) // 2]                      # a middle distance partition
+    confident = predicted is not None and len(predicted['centre']) > 0
+    use_pred = cfg.prediction_partition and confident
+    big = _big_cells(points, middle) if cfg.sub_partition and confident else None
+    # the gate distances of the detections (prediction partitioning) and of the big
+    # cells' centroids (sub-partitioning) in one evaluation
+    d2_points = d2_big = None
+    if use_pred or big is not None:
+        rows = [points] if use_pred else []
+        if big is not None:
+            rows.append(big[2])
+        d2 = _gate_d2(rows[0] if len(rows) == 1 else np.concatenate(rows), predicted)
+        d2_points, d2_big = (d2[:m], d2[m:]) if use_pred else (None, d2)
     # prediction partitioning first: under a cap it is the most informative one
-    pred_labels = None
-    if cfg.prediction_partition and predicted is not None and len(predicted['centre']):
-        pred_labels = prediction_partition(points, predicted, dist[len(dist) // 2])
-        pset.add(pred_labels, cfg.max_partitions, cfg.max_cells)
+    if use_pred:
+        pset.add(prediction_partition(points, predicted, middle, d2_points),
+                 cfg.max_partitions, cfg.max_cells)
     pset.add_nested(dist, cfg.max_partitions, cfg.max_cells)
-    if cfg.sub_partition:
-        _sub_partitions(points, pset, dist, predicted, cfg, seed)
+    if big is not None:
+        _sub_partitions(points, pset, middle, big, d2_big, predicted, cfg, seed)
     return pset
 
 
-def prediction_partition(points, predicted, fallback_labels):
+def _gate_d2(z: np.ndarray, predicted) -> np.ndarray:
+    """(j, k) squared distances of points ``z`` (j, 2) to the confident predictions, each
+    in its own gate metric."""
+    e = z[:, None, :] - predicted['centre'][None, :, :]
+    Gi = predicted['gate_inv']
+    return (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
+            + Gi[None, :, 1, 1] * e[..., 1] ** 2)
+
+
+def _big_cells(points: np.ndarray, labels: np.ndarray):
+    """
+    ``(labels, counts, centroids)`` of the cells of ``labels`` (a distance partition:
+    labels are detection indices) with at least 4 detections, the ones sub-partitioning
+    may split; None if there is none.
+    """
+    m = len(points)
+    counts_all = np.bincount(labels, minlength=m)    # not unique / add.at
+    big = (counts_all >= 4).nonzero()[0]
+    if not len(big):
+        return None
+    counts = counts_all[big]
+    return big, counts, _sums_by(labels, points, m)[big] / counts[:, None]
+
+
+def prediction_partition(points, predicted, fallback_labels, d2=None):
     """
     Detections in a confident object's gate go to the nearest such object.
 
     The others keep their cells of ``fallback_labels`` (a middle distance partition).
+    ``d2`` (m, k) are the detections' gate distances if already computed.
     """
-    e = points[:, None, :] - predicted['centre'][None, :, :]
-    Gi = predicted['gate_inv']
-    d2 = (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
-          + Gi[None, :, 1, 1] * e[..., 1] ** 2)
+    if d2 is None:
+        d2 = _gate_d2(points, predicted)
     best = d2.argmin(axis=1)
     inside = d2[np.arange(len(points)), best] < predicted['gate']
     labels = len(predicted['centre']) + np.asarray(fallback_labels, dtype=np.int64)
@@ -479,23 +514,15 @@ def prediction_partition(points, predicted, fallback_labels):
     return labels
 
 
-def _sub_partitions(points, pset, dist, predicted, cfg, seed):
-    """Split cells that likely hold several objects, one new partition per split cell."""
-    if predicted is None or not len(predicted['centre']) or not dist:
-        return
-    base = dist[len(dist) // 2]                      # a middle distance partition
-    # labels are root detection indices (< m): bincount instead of unique / add.at
-    counts_all = np.bincount(base, minlength=len(points))
-    labels = (counts_all >= 4).nonzero()[0]
-    if not len(labels):
-        return
-    counts = counts_all[labels]
-    zbar = _sums_by(base, points, len(points))[labels] / counts[:, None]
+def _sub_partitions(points, pset, base, big, d2, predicted, cfg, seed):
+    """
+    Split cells that likely hold several objects, one new partition per split cell.
+
+    ``base`` is the middle distance partition, ``big`` its cells of at least 4 detections
+    (:func:`_big_cells`) and ``d2`` their centroids' gate distances to the predictions.
+    """
+    labels, counts, _ = big
     centre = predicted['centre']
-    Gi = predicted['gate_inv']
-    e = zbar[:, None, :] - centre[None, :, :]
-    d2 = (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
-          + Gi[None, :, 1, 1] * e[..., 1] ** 2)
     near = d2 < predicted['gate']
     cand = near.any(axis=1).nonzero()[0]
     if not len(cand):
