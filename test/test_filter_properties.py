@@ -204,9 +204,8 @@ def test_single_linkage_equals_scipys_public_call(pts):
 @given(point_sets(max_n=150))
 def test_condensed_distances_equal_pdist_bit_for_bit(pts):
     """
-    The masked-matrix distances of small scans are ``pdist``'s exactly (same squares, same
-    sum, same root), and larger scans go to pdist itself: merge heights, and so the
-    distance thresholds, cannot move.
+    The compiled kernel's distances are ``pdist``'s exactly, at every size: merge
+    heights, and so the distance thresholds, cannot move.
     """
     from scipy.spatial.distance import pdist
 
