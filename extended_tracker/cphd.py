@@ -205,21 +205,13 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     pc_r = pc_pad[pad + k1[:, None] - r[None, :]] + pre[R]
     pc_r[~feasible] = NEG_INF
     col = np.minimum(k2[:, None] + r[None, :], k_most)
+    lam = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
+    u0 = log_A + lse_last(W1[col] + pc_r)
+    cells, vals = [], []
     # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
     rows = feasible[pid] & ~single
-    any_ns = np.logical_or.reduce(rows)
-    # Lambda_P(n) for every n, the Upsilon_0 term and that of the non-singleton cells all
-    # sum the same pc_r over r: one logsumexp over the stacked terms serves them all
-    terms = [T[:, col] + pc_r[None, :, :], (W1[col] + pc_r)[None]]
-    if any_ns:
-        terms.append((w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)[None])
-    sums = lse_last(np.concatenate(terms))
-    n_rows = len(T)
-    lam = log_A[:, None] + sums[:n_rows].T
-    u0 = log_A + sums[n_rows]
-    cells, vals = [], []
-    if any_ns:
-        u_ns = sums[n_rows + 1]
+    if np.logical_or.reduce(rows):
+        u_ns = lse_last(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
         pr = pid[rows]
         cells.append(flat[rows])
         vals.append(log_A[pr] - la[rows] + u_ns[pr])
