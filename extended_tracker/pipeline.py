@@ -215,8 +215,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         keep_c = ~vis.outside
         pred = evolve(pred, mixture=pred.mixture.take(keep_c))
         vis = evolve(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
-                      rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
-                      offset=vis.offset[keep_c], outside=vis.outside[keep_c])
+                     rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
+                     offset=vis.offset[keep_c], outside=vis.outside[keep_c])
         diag['left_view'] = len(keep_c) - int(np.count_nonzero(keep_c))
 
     def pair_p_d(mix, comp, m_new, P_new):
@@ -229,8 +229,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
               'capped_cells', 'capped_components', 'oversized', 'fused_labels', 'relabelled'):
         diag[k] = getattr(fdiag, k)
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
-                        frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
-                        elapsed=state.elapsed + dt)
+                       frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
+                       elapsed=state.elapsed + dt)
     card, mean = _card_of(new_state)
     result = StepResult(now, frame, estimates, card, mean, points, bg_points, diag, event,
                         None, 0.0)

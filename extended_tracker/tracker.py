@@ -222,7 +222,7 @@ def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterSt
     birth_mean = float(np.sum(regions.w)) + birth_intensity(cfg, dt)
     log_card = predict_cardinality(state.log_card, p_s, birth_mean)
     return evolve(state, mixture=Mixture.concat([survivors, regions]), log_card=log_card,
-                   next_label=next_label, dt=dt)
+                  next_label=next_label, dt=dt)
 
 
 def birth_intensity(cfg: TrackerConfig, dt: float) -> float:
@@ -496,7 +496,7 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     # ascending label order as extract gives them (the shown record searches them)
     order = est_label.argsort(kind='stable')
     return (evolve(new, mixture=evolve(mix, label=label),
-                    next_label=new.next_label + len(bad)),
+                   next_label=new.next_label + len(bad)),
             evolve(est, label=est_label).take(order), len(bad))
 
 
@@ -509,7 +509,7 @@ def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> Fil
     elapsed = np.concatenate([old.shown_elapsed[keep] + new.dt, np.zeros(len(shown))])
     order = label.argsort(kind='stable')
     return evolve(new, shown=label[order], shown_pos=pos[order],
-                   shown_elapsed=elapsed[order])
+                  shown_elapsed=elapsed[order])
 
 
 def _find_sorted(ascending: np.ndarray, a: np.ndarray):
@@ -544,7 +544,7 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
         if i is not None:
             travel[j] = max(travel[j], old.reported_travel[i])
     return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
-                   reported_travel=travel, reported_age=age)
+                  reported_travel=travel, reported_age=age)
 
 
 def _pad(a, n: int, fill: float):
