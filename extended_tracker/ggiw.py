@@ -227,6 +227,15 @@ def sqrtm_spd2(A):
     return out / t[..., None, None]
 
 
+def quad_form2(e, A):
+    """
+    ``e^T A e`` of (..., 2) vectors and symmetric (..., 2, 2) matrices, broadcast against
+    each other, in closed form (the off-diagonal read once and doubled).
+    """
+    return (A[..., 0, 0] * e[..., 0] ** 2 + 2 * A[..., 0, 1] * e[..., 0] * e[..., 1]
+            + A[..., 1, 1] * e[..., 1] ** 2)
+
+
 def symmetrize(A):
     """Return ``(A + A^T) / 2`` over the last two axes."""
     return 0.5 * (A + A.swapaxes(-1, -2))
@@ -526,7 +535,6 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     Gi = inv2(gate_covariance(mix, rho, R)) if gate_inv is None else gate_inv
     e = stats.mean[None, :, :] - mix.m[:, None, :2]          # (nc, ncell, 2)
-    d2 = (Gi[:, None, 0, 0] * e[..., 0] ** 2 + 2 * Gi[:, None, 0, 1] * e[..., 0] * e[..., 1]
-          + Gi[:, None, 1, 1] * e[..., 1] ** 2)
+    d2 = quad_form2(e, Gi[:, None])
     comp, cell = (d2 < threshold).nonzero()
     return comp.astype(np.int64), cell.astype(np.int64)

@@ -26,6 +26,8 @@ from scipy.sparse.csgraph import minimum_spanning_tree
 from scipy.spatial import cKDTree, Delaunay, QhullError
 from scipy.spatial.distance import pdist
 
+from .ggiw import quad_form2
+
 try:
     # the C routine scipy's ``linkage(y, 'single')`` calls after validating ``y`` (77 us of
     # checks and array-API dispatch around a 30 us MST at 46 returns); a test holds it
@@ -467,10 +469,8 @@ def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> 
 def _gate_d2(z: np.ndarray, predicted) -> np.ndarray:
     """(j, k) squared distances of points ``z`` (j, 2) to the confident predictions, each
     in its own gate metric."""
-    e = z[:, None, :] - predicted['centre'][None, :, :]
-    Gi = predicted['gate_inv']
-    return (Gi[None, :, 0, 0] * e[..., 0] ** 2 + 2 * Gi[None, :, 0, 1] * e[..., 0] * e[..., 1]
-            + Gi[None, :, 1, 1] * e[..., 1] ** 2)
+    return quad_form2(z[:, None, :] - predicted['centre'][None, :, :],
+                      predicted['gate_inv'][None])
 
 
 def _big_cells(points: np.ndarray, labels: np.ndarray):

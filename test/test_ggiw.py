@@ -269,3 +269,20 @@ def test_c_einsum_equals_numpys_wrapper():
     for spec, ops in (('ki,kij,kj->k', (e, X, e)), ('kij,kj->ki', (K, e)),
                       ('ki,ij,kj->k', (e, X[0], e)), ('ijk,ikl,ijl->ij', (E, M, E))):
         assert np.array_equal(einsum(spec, *ops), np.einsum(spec, *ops))
+
+
+def test_quad_form2_equals_the_matrix_product():
+    """The closed-form ``e^T A e`` of the gates against the plain product, broadcast the two
+    ways the gates use it (rounding differs: the closed form doubles the off-diagonal)."""
+    from extended_tracker.ggiw import quad_form2
+
+    rng = np.random.default_rng(5)
+    B = rng.normal(size=(6, 2, 2))
+    A = B @ B.swapaxes(1, 2) + 0.1 * np.eye(2)                 # symmetric positive definite
+    e = rng.normal(size=(6, 4, 2))
+    want = np.einsum('kci,kij,kcj->kc', e, A, e)
+    # values of order 1 summed from three or four products: agreement to a few ulps
+    np.testing.assert_allclose(quad_form2(e, A[:, None]), want, rtol=1e-12)
+    z = rng.normal(size=(4, 6, 2))
+    np.testing.assert_allclose(quad_form2(z, A[None]), np.einsum('jki,kil,jkl->jk', z, A, z),
+                               rtol=1e-12)
