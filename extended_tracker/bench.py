@@ -106,17 +106,10 @@ def bench_profile(n=4, runs=5, run_scans=60, top=25):
 
     cfg = from_dict({'background': {'enabled': False}})
     runs_pts = _pedestrian_runs(n, runs, run_scans)
-
-    def replay_all():
-        for pts in runs_pts:
-            state = FilterState.initial(cfg)
-            for sp in pts:
-                state, _, _ = filter_step(state, sp.points, 0.1, cfg, clutter_area=sp.area)
-
-    replay_all()                                      # warm the caches first
+    _filter_times(runs_pts, cfg, 0)                   # warm the caches first
     prof = cProfile.Profile()
     prof.enable()
-    replay_all()
+    _filter_times(runs_pts, cfg, 0)
     prof.disable()
     steps = sum(len(p) for p in runs_pts)
     print(f'\nprofile of the filter step, {n} pedestrians, {steps} steps '
