@@ -145,6 +145,11 @@ class ExtractionConfig:
                           'm/s', 0.0, 1000.0, lo_open=True)
     jump_slack: float = _f(1.0, 'allowance on top of max_speed for the spread of an estimate '
                            'between partial views', 'm', 0.0, 100.0)
+    handover_time: float = _f(1.0, 'an id shown until this long ago and lost passes to an '
+                              'object first extracted this recently near where it was (0: never)',
+                              's', 0.0, 100.0)
+    handover_distance: float = _f(0.8, 'how near the lost id\'s extrapolated position the new '
+                                  'object must be', 'm', 0.0, 100.0)
     rectangle_length: float = _f(1.2, 'objects longer than this are drawn as rectangles', 'm',
                                  0.0, 100.0)
     rectangle_elongation: float = _f(2.5, 'or more elongated than this (semi-axes ratio) and '

@@ -113,10 +113,15 @@ class FilterState:
         ``reported_origin`` (r, 2) is where each was first reported and
         ``reported_travel`` (r,) the farthest it has been from there (m).
     shown : (s,) int64 array
-        Labels ever reported (shown to the user) that are still in the mixture, ascending;
-        ``shown_pos`` (s, 2) is where each was last shown and ``shown_elapsed`` (s,) how
-        long ago (s). A label's next report must be reachable from there at
-        ``extraction.max_speed`` or it is a new object.
+        Labels ever reported (shown to the user) that are still in the mixture or were
+        shown less than ``extraction.handover_time`` ago, ascending; ``shown_pos`` (s, 2)
+        is where each was last shown, ``shown_vel`` (s, 2) its velocity then and
+        ``shown_elapsed`` (s,) how long ago (s). A label's next report must be reachable
+        from there at ``extraction.max_speed`` or it is a new object.
+    label_clock : tuple of (float, int)
+        ``(seconds ago, next_label then)`` at the start of each scan of the last
+        ``extraction.handover_time`` seconds, oldest first: labels from the first
+        ``next_label`` on were created in that time.
 
     """
 
@@ -130,7 +135,9 @@ class FilterState:
     reported_age: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shown: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shown_pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    shown_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     shown_elapsed: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    label_clock: tuple = ()
     dt: float = 0.1
 
     @staticmethod
@@ -168,6 +175,7 @@ class StepDiagnostics:
     oversized: int = 0
     fused_labels: int = 0
     relabelled: int = 0
+    handed_over: int = 0
 
 
 def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
@@ -449,10 +457,12 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     new_state = evolve(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
     candidates = extract(new_state, cfg, n_det, vis_of)
     new_state, candidates, diag.relabelled = _relabel_jumps(state, new_state, candidates, cfg)
-    new_state = _record_reports(state, new_state, candidates)
+    new_state, candidates, record, diag.handed_over = _hand_over(state, new_state, candidates,
+                                                                 cfg)
+    new_state = _record_reports(record, new_state, candidates)
     # report a label once it has been extracted confirm_scans scans in a row
     shown = candidates.take(new_state.reported_scans >= cfg.extraction.confirm_scans)
-    return _remember_shown(state, new_state, shown), shown, diag
+    return _remember_shown(state, new_state, shown, cfg.extraction.handover_time), shown, diag
 
 
 def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerConfig):
@@ -500,16 +510,106 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
             evolve(est, label=est_label).take(order), len(bad))
 
 
-def _remember_shown(old: FilterState, new: FilterState, shown: Estimates) -> FilterState:
-    """Where and how long ago each label still in the mixture was last shown."""
+def _remember_shown(old: FilterState, new: FilterState, shown: Estimates,
+                    handover_time: float = 0.0) -> FilterState:
+    """
+    Where, at what velocity and how long ago each label was last shown: labels still in
+    the mixture, and those shown less than ``handover_time`` ago (they may be handed
+    over, see :func:`_hand_over`). Also the label counter of the last
+    ``handover_time`` seconds.
+    """
     alive = new.mixture.per_label()[0]                 # ascending, cached by extract
-    keep = _find_sorted(alive, old.shown)[1] & ~_find_sorted(shown.label, old.shown)[1]
+    elapsed = old.shown_elapsed + new.dt
+    keep = ((_find_sorted(alive, old.shown)[1] | (elapsed <= handover_time))
+            & ~_find_sorted(shown.label, old.shown)[1])
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
-    elapsed = np.concatenate([old.shown_elapsed[keep] + new.dt, np.zeros(len(shown))])
+    vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
+    elapsed = np.concatenate([elapsed[keep], np.zeros(len(shown))])
     order = label.argsort(kind='stable')
-    return evolve(new, shown=label[order], shown_pos=pos[order],
-                  shown_elapsed=elapsed[order])
+    dt = new.dt
+    clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
+    return evolve(new, shown=label[order], shown_pos=pos[order], shown_vel=vel[order],
+                  shown_elapsed=elapsed[order], label_clock=clock + ((0.0, old.next_label),))
+
+
+def _hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerConfig):
+    """
+    Give a lost id to a young object that appeared where the lost one would be.
+
+    A label shown less than ``extraction.handover_time`` ago that is not extracted now is
+    lost. A label created less than ``handover_time`` ago and extracted now is young. A
+    young label within ``extraction.handover_distance`` of a lost label's last shown
+    position, carried on at its last shown velocity, takes the lost label (nearest pairs
+    first, one to one), unless the speed limit of :func:`_relabel_jumps` would call the
+    move a jump. Established labels never take another's id, so two tracked objects that
+    pass each other keep theirs.
+
+    In the mixture the two labels swap: the young object's components carry the old id
+    on, the lost label's fading components carry the young one. The young label's report
+    count passes to the old id when the old id was not extracted in the last scan, so a
+    handed-over id is confirmed as the young one would have been.
+
+    Returns the state, the estimates (ascending labels), the report record to continue
+    from (``old`` with the young labels' counts renamed) and the number of handovers.
+
+    Notes
+    -----
+    Seen at leg height (the leg_tracker demo): a walker tracked on one leg while the other
+    is hidden; the other leg steps out 0.3-0.5 m ahead, is split off under a new label,
+    and the first leg's track fades when that leg is hidden in turn. Without a handover
+    the walker changes id at every such step.
+    """
+    window = cfg.extraction.handover_time
+    if window <= 0 or not len(old.shown) or not len(est):
+        return new, est, old, 0
+    dt = new.dt
+    extracted = set(est.label.tolist())
+    lost = [i for i, (lab, ago) in enumerate(zip(old.shown.tolist(),
+                                                 old.shown_elapsed.tolist()))
+            if ago + dt <= window and lab not in extracted]
+    if not lost:
+        return new, est, old, 0
+    # labels created this scan are >= old.next_label, earlier ones in the window >= the
+    # counter at the window's start
+    first_young = next((lab for ago, lab in old.label_clock if ago + dt <= window),
+                       old.next_label)
+    young = (est.label >= first_young).nonzero()[0]
+    if not len(young):
+        return new, est, old, 0
+    ex = cfg.extraction
+    lost = np.array(lost)
+    elapsed = old.shown_elapsed[lost] + dt
+    pos, last = est.m[young, None, :2], old.shown_pos[None, lost]
+    d = pos - (last + old.shown_vel[None, lost] * elapsed[None, :, None])
+    dist = np.sqrt(np.add.reduce(d * d, axis=2))       # (young, lost)
+    # and never farther than the speed limit lets an id move (see _relabel_jumps)
+    d = pos - last
+    reach = ex.max_speed * elapsed + ex.jump_slack
+    near = ((dist <= ex.handover_distance)
+            & (np.sqrt(np.add.reduce(d * d, axis=2)) <= reach[None, :])).nonzero()
+    if not len(near[0]):
+        return new, est, old, 0
+    order = dist[near].argsort(kind='stable')
+    taken_y, taken_l, pairs = set(), set(), []
+    for yi, li in zip(near[0][order].tolist(), near[1][order].tolist()):
+        if yi not in taken_y and li not in taken_l:
+            taken_y.add(yi)
+            taken_l.add(li)
+            pairs.append((int(est.label[young[yi]]), int(old.shown[lost[li]])))
+    mix = new.mixture
+    label = mix.label.copy()
+    est_label = est.label.copy()
+    rec = old.reported.copy()
+    for y, a in pairs:
+        is_y, is_a = mix.label == y, mix.label == a
+        label[is_y], label[is_a] = a, y
+        est_label[est.label == y] = a
+        if not (rec == a).any():
+            rec[rec == y] = a
+    order = est_label.argsort(kind='stable')
+    return (evolve(new, mixture=evolve(mix, label=label)),
+            evolve(est, label=est_label).take(order), evolve(old, reported=rec), len(pairs))
 
 
 def _find_sorted(ascending: np.ndarray, a: np.ndarray):

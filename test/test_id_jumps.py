@@ -64,14 +64,23 @@ def test_relabelled_ids_are_never_reused_and_each_gets_its_own():
 def test_shown_positions_age_and_dead_labels_are_forgotten():
     old = FilterState(Mixture.empty(), np.zeros(1), shown=np.array([1, 3, 8]),
                       shown_pos=np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]),
+                      shown_vel=np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]),
                       shown_elapsed=np.array([0.3, 0.0, 0.1]))
     # label 8 is no longer in the mixture; 3 is shown again; 6 is shown for the first time
     new = FilterState(mixture([(1, 1.0, 0.0, 0.0), (3, 1.0, 1.5, 1.0), (6, 1.0, 4.0, 4.0)]),
                       np.zeros(1), dt=0.1)
-    out = _remember_shown(old, new, estimates([3, 6], [[1.5, 1.0], [4.0, 4.0]]))
+    shown = estimates([3, 6], [[1.5, 1.0], [4.0, 4.0]])
+    shown.m[:, 2:] = [[0.5, 0.0], [0.0, -0.5]]
+    out = _remember_shown(old, new, shown)
     assert out.shown.tolist() == [1, 3, 6]
     np.testing.assert_allclose(out.shown_pos, [[0.0, 0.0], [1.5, 1.0], [4.0, 4.0]])
+    np.testing.assert_allclose(out.shown_vel, [[1.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
     np.testing.assert_allclose(out.shown_elapsed, [0.4, 0.0, 0.0])
+    # within the handover time a dead label is remembered (0.2 s ago), then forgotten
+    out = _remember_shown(old, new, shown, handover_time=0.2)
+    assert out.shown.tolist() == [1, 3, 6, 8]
+    np.testing.assert_allclose(out.shown_elapsed, [0.4, 0.0, 0.0, 0.2])
+    assert _remember_shown(out, new, shown, handover_time=0.2).shown.tolist() == [1, 3, 6]
 
 
 def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0):
@@ -131,7 +140,8 @@ def test_relabelled_estimates_stay_in_label_order_for_the_shown_record():
     # twice, once at its stale position.
     cfg = from_dict({'extraction': {'max_speed': 1.0, 'jump_slack': 0.0, 'confirm_scans': 1}})
     old = FilterState(Mixture.empty(), np.zeros(1), shown=np.array([4, 9]),
-                      shown_pos=np.array([[0.0, 0.0], [0.0, 3.0]]), shown_elapsed=np.zeros(2))
+                      shown_pos=np.array([[0.0, 0.0], [0.0, 3.0]]), shown_vel=np.zeros((2, 2)),
+                      shown_elapsed=np.zeros(2))
     new = FilterState(mixture([(4, 1.0, 5.0, 0.0), (9, 1.0, 0.0, 3.05)]), np.zeros(1),
                       next_label=13, dt=0.1)
     out, est, n = _relabel_jumps(old, new, estimates([4, 9], [[5.0, 0.0], [0.0, 3.05]]), cfg)

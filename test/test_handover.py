@@ -1,0 +1,156 @@
+"""
+Lost ids pass to young objects where the lost object would be (``tracker._hand_over``).
+
+A label shown less than ``extraction.handover_time`` ago and not extracted now is lost; a
+label created less than ``handover_time`` ago and extracted now is young. A young label
+within ``extraction.handover_distance`` of where the lost one would be (last shown
+position plus velocity times the time since) takes the lost id.
+"""
+
+import numpy as np
+
+from extended_tracker.config import from_dict
+from extended_tracker.ggiw import Mixture
+from extended_tracker.tracker import _hand_over, Estimates, FilterState, filter_step
+
+from mixtures import pedestrians as mixture
+
+
+def estimates(labels, xy):
+    k = len(labels)
+    m = np.zeros((k, 4))
+    m[:, :2] = xy
+    return Estimates(np.array(labels, dtype=np.int64), np.ones(k), m, np.zeros((k, 4, 4)),
+                     np.zeros((k, 2, 2)), np.ones(k), np.zeros(k, np.int64), np.ones(k))
+
+
+def lost_state(shown, pos, vel=None, elapsed=None, reported=(), reported_scans=(),
+               recent_from=9):
+    """Labels ``shown`` last shown at ``pos``; labels from ``recent_from`` on are young."""
+    k = len(shown)
+    return FilterState(
+        Mixture.empty(), np.zeros(1), next_label=12,
+        reported=np.array(reported, dtype=np.int64),
+        reported_scans=np.array(reported_scans, dtype=np.int64),
+        reported_origin=np.zeros((len(reported), 2)), reported_travel=np.zeros(len(reported)),
+        reported_age=np.zeros(len(reported)),
+        shown=np.array(shown, dtype=np.int64), shown_pos=np.array(pos, dtype=float),
+        shown_vel=np.zeros((k, 2)) if vel is None else np.array(vel, dtype=float),
+        shown_elapsed=np.zeros(k) if elapsed is None else np.array(elapsed, dtype=float),
+        label_clock=((0.5, recent_from),))
+
+
+CFG = from_dict({'extraction': {'handover_time': 1.0, 'handover_distance': 0.8}})
+
+
+def test_a_young_label_where_the_lost_one_would_be_takes_its_id_and_the_labels_swap():
+    # label 5 was shown 0.4 s before the last scan at the origin walking at 1 m/s along
+    # x: it would be at (0.5, 0) now. Young label 9 is at (0.9, 0.3), 0.5 m from there.
+    old = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[0.4],
+                     reported=[9], reported_scans=[2])
+    new = FilterState(mixture([(5, 0.05, 0.5, 0.0), (9, 0.7, 0.9, 0.3), (9, 0.3, 0.95, 0.3)]),
+                      np.zeros(1), next_label=12, dt=0.1)
+    out, est, record, n = _hand_over(old, new, estimates([9], [[0.9, 0.3]]), CFG)
+    assert n == 1
+    assert est.label.tolist() == [5]
+    # the young object's components carry the old id, the fading ones the young label
+    assert out.mixture.label.tolist() == [9, 5, 5]
+    assert np.array_equal(out.mixture.w, new.mixture.w)
+    # 5 was not extracted in the last scan: 9's count of 2 scans goes on under 5
+    assert record.reported.tolist() == [5] and record.reported_scans.tolist() == [2]
+
+
+def test_an_id_extracted_in_the_last_scan_keeps_its_own_report_count():
+    old = lost_state([5], [[0.0, 0.0]], reported=[5, 9], reported_scans=[40, 1])
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.4, 0.0)]), np.zeros(1), dt=0.1)
+    _, est, record, n = _hand_over(old, new, estimates([9], [[0.4, 0.0]]), CFG)
+    assert n == 1 and est.label.tolist() == [5]
+    assert record.reported.tolist() == [5, 9] and record.reported_scans.tolist() == [40, 1]
+
+
+def test_an_established_label_never_takes_a_lost_id():
+    # label 7 is right where lost label 5 would be, but it is older than the window
+    old = lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]])
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (7, 1.0, 0.3, 0.0)]), np.zeros(1), dt=0.1)
+    est = estimates([7], [[0.3, 0.0]])
+    out, out_est, _, n = _hand_over(old, new, est, CFG)
+    assert n == 0 and out is new and out_est is est
+    # the same object under a label created in the window does take it
+    _, out_est, _, n = _hand_over(lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], recent_from=7),
+                                  new, est, CFG)
+    assert n == 1 and out_est.label.tolist() == [5]
+
+
+def test_too_far_too_late_or_switched_off_means_no_handover():
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.85, 0.0)]), np.zeros(1), dt=0.1)
+    est = estimates([9], [[0.85, 0.0]])
+    # 0.85 m from where 5 would be (it stood still): beyond 0.8 m
+    assert _hand_over(lost_state([5], [[0.0, 0.0]]), new, est, CFG)[3] == 0
+    # walking at 1 m/s towards it, 0.4 s + 0.1 s ago: it would be at 0.5 m, 0.35 m away
+    moving = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[0.4])
+    assert _hand_over(moving, new, est, CFG)[3] == 1
+    # shown 1 s before the last scan: lost for longer than the window
+    late = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[1.0])
+    assert _hand_over(late, new, est, CFG)[3] == 0
+    off = from_dict({'extraction': {'handover_time': 0.0}})
+    assert _hand_over(moving, new, est, off)[3] == 0
+    # the speed limit has the last word: 0.85 m in 0.5 s is more than 0.5 m/s allows
+    slow = from_dict({'extraction': {'max_speed': 0.5, 'jump_slack': 0.0}})
+    assert _hand_over(moving, new, est, slow)[3] == 0
+
+
+def test_nearest_pairs_first_one_to_one_and_estimates_stay_in_label_order():
+    old = lost_state([5, 6], [[0.0, 0.0], [1.0, 0.0]])
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (6, 0.1, 1.0, 0.0), (9, 1.0, 0.3, 0.0),
+                               (10, 1.0, 0.1, 0.0), (11, 1.0, 0.5, 0.0)]),
+                      np.zeros(1), dt=0.1)
+    # pairs within 0.8 m, nearest first: 10-5 (0.1), 9-5 (0.3), 11-5 and 11-6 (0.5), 9-6
+    # (0.7). 10 takes 5; 5 is then taken, so 11 takes 6 and 9 keeps its own label.
+    est = estimates([9, 10, 11], [[0.3, 0.0], [0.1, 0.0], [0.5, 0.0]])
+    out, est, _, n = _hand_over(old, new, est, CFG)
+    assert n == 2
+    assert est.label.tolist() == [5, 6, 9]
+    np.testing.assert_allclose(est.m[:, 0], [0.1, 0.5, 0.3])
+    assert out.mixture.label.tolist() == [10, 11, 9, 5, 6]
+
+
+def _walker(handover_time, step_aside, gap=0, seed=0):
+    """
+    Eight returns around a walker at 1 m/s along y = 1 for 2 s; then it is unseen for
+    ``gap`` scans and goes on ``step_aside`` m to the side (as a leg-height walker's
+    track jumps from one leg to the other). Returns the reported labels of each scan.
+    """
+    cfg = from_dict({'extraction': {'handover_time': handover_time}})
+    rng = np.random.default_rng(seed)
+    state = FilterState.initial(cfg)
+    out = []
+    for k in range(40):
+        centre = np.array([2.0 + 0.1 * k, 1.0 + (step_aside if k >= 20 else 0.0)])
+        a = rng.uniform(0.0, 2.0 * np.pi, 8)
+        pts = centre + 0.15 * np.c_[np.cos(a), np.sin(a)] + rng.normal(0.0, 0.02, (8, 2))
+        if 20 <= k < 20 + gap:
+            pts = np.zeros((0, 2))
+        state, est, diag = filter_step(state, pts, 0.1, cfg, clutter_area=50.0)
+        out.append((est.label.tolist(), diag.handed_over))
+    return out
+
+
+def test_a_walker_whose_returns_step_aside_keeps_its_id():
+    # the premise: without handover the track fades and a second id follows the walker
+    plain = _walker(0.0, 0.6)
+    assert plain[19][0] == [1] and plain[-1][0] == [2]
+    kept = _walker(1.0, 0.6)
+    assert all(labels == [1] for labels, _ in kept[2:])
+    assert sum(n for _, n in kept) == 1
+    # unseen for 0.5 s first: the id comes back with the walker
+    gap = _walker(1.0, 0.6, gap=5)
+    assert gap[19][0] == [1] and gap[-1][0] == [1]
+
+
+def test_a_newcomer_too_far_or_too_late_gets_its_own_id():
+    far = _walker(1.0, 1.5)
+    assert far[19][0] == [1] and far[-1][0] == [2]
+    assert sum(n for _, n in far) == 0
+    late = _walker(1.0, 0.6, gap=12)
+    assert late[19][0] == [1] and late[-1][0] == [2]
+    assert sum(n for _, n in late) == 0
