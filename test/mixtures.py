@@ -1,8 +1,10 @@
-"""Small hand-made GGIW mixtures for the label tests (imported by them, not a test)."""
+"""Small hand-made GGIW mixtures and estimates for the label tests (imported by them, not a
+test)."""
 
 import numpy as np
 
 from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.tracker import Estimates
 
 
 def pedestrians(rows):
@@ -15,3 +17,12 @@ def pedestrians(rows):
     V = np.broadcast_to((20.0 - IW_OFFSET) * 0.2 ** 2 * np.eye(2), (k, 2, 2)).copy()
     return Mixture(w.astype(float), np.full(k, 10.0), np.ones(k), m, P, v, V,
                    lab.astype(np.int64))
+
+
+def estimates(labels, xy):
+    """Standing point estimates: ``labels`` at positions ``xy``, everything else neutral."""
+    k = len(labels)
+    m = np.zeros((k, 4))
+    m[:, :2] = xy
+    return Estimates(np.array(labels, dtype=np.int64), np.ones(k), m, np.zeros((k, 4, 4)),
+                     np.zeros((k, 2, 2)), np.ones(k), np.zeros(k, np.int64), np.ones(k))

@@ -11,17 +11,9 @@ import numpy as np
 
 from extended_tracker.config import from_dict
 from extended_tracker.ggiw import Mixture
-from extended_tracker.tracker import _hand_over, Estimates, FilterState, filter_step
+from extended_tracker.tracker import _hand_over, FilterState, filter_step
 
-from mixtures import pedestrians as mixture
-
-
-def estimates(labels, xy):
-    k = len(labels)
-    m = np.zeros((k, 4))
-    m[:, :2] = xy
-    return Estimates(np.array(labels, dtype=np.int64), np.ones(k), m, np.zeros((k, 4, 4)),
-                     np.zeros((k, 2, 2)), np.ones(k), np.zeros(k, np.int64), np.ones(k))
+from mixtures import estimates, pedestrians as mixture
 
 
 def lost_state(shown, pos, vel=None, elapsed=None, reported=(), reported_scans=(),

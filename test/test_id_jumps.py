@@ -11,18 +11,10 @@ import numpy as np
 from extended_tracker.config import from_dict
 from extended_tracker.ggiw import Mixture
 from extended_tracker.tracker import (
-    _relabel_jumps, _remember_shown, Estimates, FilterState, filter_step,
+    _relabel_jumps, _remember_shown, FilterState, filter_step,
 )
 
-from mixtures import pedestrians as mixture
-
-
-def estimates(labels, xy):
-    k = len(labels)
-    m = np.zeros((k, 4))
-    m[:, :2] = xy
-    return Estimates(np.array(labels, dtype=np.int64), np.ones(k), m, np.zeros((k, 4, 4)),
-                     np.zeros((k, 2, 2)), np.ones(k), np.zeros(k, np.int64), np.ones(k))
+from mixtures import estimates, pedestrians as mixture
 
 
 def test_the_reach_is_max_speed_times_time_since_shown_plus_slack():
