@@ -143,8 +143,12 @@ class ExtractionConfig:
     max_speed: float = _f(15.0, 'a report farther than max_speed times the time since its id '
                           'was last shown (plus jump_slack) is a new object: it gets a new id',
                           'm/s', 0.0, 1000.0, lo_open=True)
-    jump_slack: float = _f(1.0, 'allowance on top of max_speed for the spread of an estimate '
-                           'between partial views', 'm', 0.0, 100.0)
+    max_accel: float = _f(10.0, 'a report farther than max_accel t^2 / 2 (plus jump_slack) '
+                          'from where its id\'s last shown velocity would have carried it in '
+                          'the t seconds since is a new object (0: no such check)', 'm/s^2',
+                          0.0, 1000.0)
+    jump_slack: float = _f(1.0, 'allowance on top of max_speed and max_accel for the spread '
+                           'of an estimate between partial views', 'm', 0.0, 100.0)
     handover_time: float = _f(1.0, 'an id shown until this long ago and lost passes to an '
                               'object first extracted this recently near where it was (0: never)',
                               's', 0.0, 100.0)

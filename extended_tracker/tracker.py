@@ -474,8 +474,11 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     extraction.jump_slack`` it is not the object that was shown: a track that coasted
     unseen while its position uncertainty grew to metres has taken the returns of a
     newcomer (the CV model's white acceleration lets it; a walker does not run at
-    6 m/s). The estimate stays where the filter put it, under a fresh label that must
-    be confirmed like any new object, and the old id is not reused.
+    6 m/s). Likewise when ``q`` is farther than ``extraction.max_accel * t^2 / 2 +
+    jump_slack`` from ``p + v t``, ``v`` the velocity it was shown with: an object at
+    rest does not cover 3 m in 0.4 s. The estimate stays where the filter put it, under
+    a fresh label that must be confirmed like any new object, and the old id is not
+    reused.
 
     Returns the state (mixture relabelled, ``next_label`` advanced), the estimates (still
     in ascending label order) and the number of labels changed.
@@ -483,15 +486,21 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     Notes
     -----
     Seen on the leg_tracker positive_1 recording: ids that jumped 4.2 m in 0.4 s and
-    8.6 m in 1.2 s (since last shown) onto people who had just entered.
+    8.6 m in 1.2 s (since last shown) onto people who had just entered. On the
+    obstacle_detector recording, tracks on static posts jumped 3-4 m to another post
+    within the default 15 m/s.
     """
     if not len(old.shown) or not len(est):
         return new, est, 0
+    ex = cfg.extraction
     at, known = _find_sorted(old.shown, est.label)
     d = est.m[:, :2] - old.shown_pos[at]
-    reach = cfg.extraction.max_speed * (old.shown_elapsed[at] + new.dt)
-    jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1))
-                      > reach + cfg.extraction.jump_slack)
+    t = old.shown_elapsed[at] + new.dt
+    jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1)) > ex.max_speed * t + ex.jump_slack)
+    if ex.max_accel > 0:
+        d -= old.shown_vel[at] * t[:, None]          # from where its velocity carried it
+        jumped |= known & (np.sqrt(np.add.reduce(d * d, axis=1))
+                           > 0.5 * ex.max_accel * t * t + ex.jump_slack)
     if not np.logical_or.reduce(jumped):
         return new, est, 0
     bad = est.label[jumped]

@@ -18,10 +18,11 @@ from mixtures import estimates, pedestrians as mixture
 
 
 def test_the_reach_is_max_speed_times_time_since_shown_plus_slack():
-    cfg = from_dict({'extraction': {'max_speed': 3.0, 'jump_slack': 1.0}})
+    cfg = from_dict({'extraction': {'max_speed': 3.0, 'jump_slack': 1.0, 'max_accel': 0.0}})
     # labels 4 and 9 were last shown at the origin, 0.5 s before the previous scan
     old = FilterState(Mixture.empty(), np.zeros(1), shown=np.array([4, 9]),
-                      shown_pos=np.zeros((2, 2)), shown_elapsed=np.array([0.5, 0.5]))
+                      shown_pos=np.zeros((2, 2)), shown_vel=np.zeros((2, 2)),
+                      shown_elapsed=np.array([0.5, 0.5]))
     mix = mixture([(4, 0.9, 2.7, 0.0), (4, 0.1, 2.6, 0.1), (7, 1.0, 9.0, 9.0),
                    (9, 1.0, 0.0, 2.9)])
     new = FilterState(mix, np.zeros(1), next_label=12, dt=0.1)
@@ -42,10 +43,33 @@ def test_the_reach_is_max_speed_times_time_since_shown_plus_slack():
     assert n == 0 and out is new and out_est is est
 
 
+def test_a_report_beyond_what_max_accel_allows_from_the_shown_velocity_is_a_new_object():
+    cfg = from_dict({'extraction': {'max_speed': 15.0, 'jump_slack': 1.0, 'max_accel': 10.0}})
+    # label 4 stood still and label 9 walked at 1.5 m/s along x, both last shown at the
+    # origin 0.3 s before the previous scan: t = 0.4 s, allowance 10 * 0.4^2 / 2 + 1 = 1.8 m
+    old = FilterState(Mixture.empty(), np.zeros(1), shown=np.array([4, 9]),
+                      shown_pos=np.zeros((2, 2)), shown_vel=np.array([[0.0, 0.0], [1.5, 0.0]]),
+                      shown_elapsed=np.array([0.3, 0.3]))
+    new = FilterState(mixture([(4, 1.0, 3.0, 0.0), (9, 1.0, 2.3, 0.0)]), np.zeros(1),
+                      next_label=20, dt=0.1)
+    # 4 is 3 m from rest (within 15 m/s * 0.4 s + 1 m = 7 m, but 3 > 1.8); 9 is 2.3 m from
+    # the origin but only 1.7 m from where 1.5 m/s carried it (0.6 m): both within reach of
+    # the speed limit, only 4 beyond the acceleration's
+    out, est, n = _relabel_jumps(old, new, estimates([4, 9], [[3.0, 0.0], [2.3, 0.0]]), cfg)
+    assert n == 1 and est.label.tolist() == [9, 20]
+    assert out.mixture.label.tolist() == [20, 9]
+    # just inside the allowance from rest: kept; and max_accel 0 switches the check off
+    est = estimates([4], [[1.79, 0.0]])
+    assert _relabel_jumps(old, new, est, cfg)[2] == 0
+    off = from_dict({'extraction': {'max_speed': 15.0, 'jump_slack': 1.0, 'max_accel': 0.0}})
+    assert _relabel_jumps(old, new, estimates([4], [[3.0, 0.0]]), off)[2] == 0
+
+
 def test_relabelled_ids_are_never_reused_and_each_gets_its_own():
     cfg = from_dict({'extraction': {'max_speed': 1.0, 'jump_slack': 0.0}})
     old = FilterState(Mixture.empty(), np.zeros(1), shown=np.array([2, 5]),
-                      shown_pos=np.zeros((2, 2)), shown_elapsed=np.zeros(2))
+                      shown_pos=np.zeros((2, 2)), shown_vel=np.zeros((2, 2)),
+                      shown_elapsed=np.zeros(2))
     new = FilterState(mixture([(2, 1.0, 5.0, 0.0), (5, 1.0, 0.0, 5.0)]), np.zeros(1),
                       next_label=30, dt=0.1)
     out, est, n = _relabel_jumps(old, new, estimates([2, 5], [[5.0, 0.0], [0.0, 5.0]]), cfg)
@@ -75,7 +99,7 @@ def test_shown_positions_age_and_dead_labels_are_forgotten():
     assert _remember_shown(out, new, shown, handover_time=0.2).shown.tolist() == [1, 3, 6]
 
 
-def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0):
+def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0, max_accel=10.0):
     """
     A walker at 1 m/s along y = 0 for 3 s, unseen for ``gap`` scans (p_D 0.05: behind
     something), then returns only from a person standing at (6, newcomer_y), or (when
@@ -83,7 +107,7 @@ def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0):
 
     Returns, per scan, the reported labels and positions.
     """
-    cfg = from_dict({'extraction': {'max_speed': max_speed}})
+    cfg = from_dict({'extraction': {'max_speed': max_speed, 'max_accel': max_accel}})
     rng = np.random.default_rng(seed)
     state = FilterState.initial(cfg)
     out = []
@@ -104,19 +128,21 @@ def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0):
 
 
 def test_a_coasting_track_does_not_hand_its_id_to_a_newcomer():
-    # the premise: with no speed limit, the walker's id reappears on the newcomer 2.5 m
+    # the premise: with neither limit, the walker's id reappears on the newcomer 2.5 m
     # off its line (the CV model's white acceleration lets its prediction spread there)
-    free = _occlusion_then_newcomer(1000.0, 2.5)
+    free = _occlusion_then_newcomer(1000.0, 2.5, max_accel=0.0)
     assert free[29][0] == [1]
     assert any(lab == [1] and m[0, 1] > 2.0 for lab, m, _ in free[30:])
-    # at walking speed, the newcomer is a new object: a new id once confirmed
-    limited = _occlusion_then_newcomer(3.0, 2.5)
-    assert sum(r for _, _, r in limited) == 1
-    for lab, m, _ in limited[30:]:
-        for label, (_, y) in zip(lab, m):
-            if y > 2.0:
-                assert label > 1
-    assert limited[-1][0] and limited[-1][0][0] > 1
+    # at walking speed, or at the default acceleration, the newcomer is a new object: a
+    # new id once confirmed
+    for limited in (_occlusion_then_newcomer(3.0, 2.5, max_accel=0.0),
+                    _occlusion_then_newcomer(1000.0, 2.5)):
+        assert sum(r for _, _, r in limited) == 1
+        for lab, m, _ in limited[30:]:
+            for label, (_, y) in zip(lab, m):
+                if y > 2.0:
+                    assert label > 1
+        assert limited[-1][0] and limited[-1][0][0] > 1
 
 
 def test_a_walker_back_on_its_path_keeps_its_id():
