@@ -56,25 +56,60 @@ def _merge(a: dict, b: dict) -> dict:
     return out
 
 
-def truth_of(objects, min_beams: int = 1):
-    """Truth set of one scan: objects seen by at least ``min_beams`` beams (visible ones)."""
-    objs = [o for o in objects if o.visible_beams >= min_beams]
+def in_view(xy, view) -> np.ndarray:
+    """
+    Which of the points ``xy`` (k, 2) lie in the region a scanner covers, ``view =
+    (angle_min, angle_max, range_max)``: its sector out to its range (all of them when
+    ``view`` is None). The region the scores are taken over.
+    """
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    if view is None:
+        return np.ones(len(xy), dtype=bool)
+    a0, a1, range_max = (float(v) for v in view)
+    lo, width = min(a0, a1), abs(a1 - a0)             # angle_increment may be negative
+    near = np.hypot(xy[:, 0], xy[:, 1]) <= range_max
+    if width >= 2.0 * np.pi:
+        return near
+    bearing = np.mod(np.arctan2(xy[:, 1], xy[:, 0]) - lo, 2.0 * np.pi)
+    return near & (bearing <= width)
+
+
+def view_of(scan):
+    """The region a LaserScan covers, for :func:`in_view`."""
+    return (scan.angle_min, scan.angle_max, scan.range_max)
+
+
+def truth_of(objects, view=None):
+    """
+    Truth set of one scan: the objects whose centre lies in ``view`` (see
+    :func:`in_view`), hidden ones included (a tracker should keep them).
+    """
+    objs = list(objects)
+    keep = in_view([o.centre for o in objs], view)
+    objs = [o for o, k in zip(objs, keep) if k]
     return ([o.id for o in objs], np.array([o.centre for o in objs]).reshape(-1, 2),
             np.array([o.extent for o in objs]).reshape(-1, 2, 2))
 
 
 def run_scenario(name: str, variant: dict):
-    """Run one scenario with a config variant; return the TrackScore and per-scan GOSPA."""
+    """
+    Run one scenario with a config variant; return the TrackScore and per-scan GOSPA.
+
+    Scored over the region the scanner covers: objects outside its sector or beyond its
+    range are not in the truth, and estimates there are not scored (a track may coast a
+    little past the range it left by).
+    """
     factory, seconds, seed, overrides, _ = SCENARIOS[name]
     cfg = from_dict(_merge(overrides, variant))
     state = PipelineState.initial(cfg)
     truth_seq, est_seq = [], []
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
         state, res = step(state, scan, cfg)
-        # Truth: every object present (hidden ones too: a tracker should keep them).
-        truth_seq.append(truth_of(objs, min_beams=0))
+        view = view_of(scan)
+        truth_seq.append(truth_of(objs, view))
         e = res.estimates
-        est_seq.append((e.label.tolist(), e.m[:, :2], e.X))
+        shown = in_view(e.m[:, :2], view)
+        est_seq.append((e.label[shown].tolist(), e.m[shown, :2], e.X[shown]))
     return score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P)
 
 
@@ -105,7 +140,9 @@ def write_readme_results(readme: Path) -> None:
     body = (f'{begin}\nGOSPA: alpha = 2, c = {GOSPA_C:g} m, p = {GOSPA_P:g}, '
             'Gaussian-Wasserstein base distance between ellipses; missed and false are the '
             'GOSPA parts (c^p/2 per object, mean per scan); card. error is the mean '
-            '|estimated - true| count per scan. Truth includes hidden objects.\n\n'
+            '|estimated - true| count per scan. Scored over the region the scanner covers '
+            '(its sector, out to its range): the truth is every object whose centre lies '
+            'there, hidden ones included, and estimates outside it are not scored.\n\n'
             f'{scenario_notes()}\n\n{results_table()}\n{end}')
     head, rest = text.split(begin, 1)
     _, tail = rest.split(end, 1)
@@ -113,13 +150,18 @@ def write_readme_results(readme: Path) -> None:
 
 
 def evaluate_bag(output_bag, truth_path, plot=None):
-    """Score the ``/tracks`` of a replayed bag against a simulator ``truth.json``."""
+    """
+    Score the ``/tracks`` of a replayed bag against a simulator ``truth.json``, over the
+    region the scanner covers when the truth file gives it (``info.view``, see
+    :func:`in_view`), as :func:`run_scenario` does.
+    """
     from rosbags.rosbag2 import Reader
 
     from .bagio import message_typestore
 
     truth = json.loads(Path(truth_path).read_text())
     by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
+    view = truth.get('info', {}).get('view')
     store = message_typestore()
     truth_seq, est_seq, stamps, counts = [], [], [], []
     try:
@@ -137,16 +179,20 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             if ns not in by_stamp:
                 continue
             objs = by_stamp[ns]
+            objs = [o for o, k in zip(objs, in_view([o['centre'] for o in objs], view)) if k]
+            est = msg.objects
+            est_m = np.array([[o.position.x, o.position.y] for o in est]).reshape(-1, 2)
+            est = [o for o, k in zip(est, in_view(est_m, view)) if k]
             truth_seq.append(([o['id'] for o in objs],
                               np.array([o['centre'] for o in objs]).reshape(-1, 2),
                               np.array([o['extent'] for o in objs]).reshape(-1, 2, 2)))
-            est_seq.append(([o.id for o in msg.objects],
+            est_seq.append(([o.id for o in est],
                             np.array([[o.position.x, o.position.y]
-                                      for o in msg.objects]).reshape(-1, 2),
+                                      for o in est]).reshape(-1, 2),
                             np.array([np.asarray(o.extent).reshape(2, 2)
-                                      for o in msg.objects]).reshape(-1, 2, 2)))
+                                      for o in est]).reshape(-1, 2, 2)))
             stamps.append(ns)
-            counts.append((len(objs), len(msg.objects)))
+            counts.append((len(objs), len(est)))
     if not stamps:
         raise BagError('no /tracks message matches a truth stamp')
     score, per = score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P)

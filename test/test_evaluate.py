@@ -1,10 +1,14 @@
 """Evaluation: a simulated bag replayed and scored against its truth, from the command line."""
 
+import json
 from pathlib import Path
 import subprocess
 import sys
 
-from extended_tracker.evaluate import evaluate_bag, run_scenario, VARIANTS
+import numpy as np
+
+from extended_tracker.evaluate import evaluate_bag, in_view, run_scenario, truth_of, VARIANTS
+from extended_tracker.sim.laser import TruthObject
 from extended_tracker.replay import replay
 from extended_tracker.config import from_dict
 from extended_tracker.sim.bag import write_sim_bag
@@ -34,3 +38,49 @@ def test_scan_shadow_beats_constant_pd_on_the_tutorial_scenario():
     constant, _ = run_scenario('tutorial', VARIANTS['CPHD, constant p_D'])
     assert shadow.gospa_mean < constant.gospa_mean
     assert shadow.id_switches < constant.id_switches
+
+
+def test_the_scored_region_is_the_scanners_sector_out_to_its_range():
+    deg = np.pi / 180.0
+    pts = np.array([[5.0, 0.0], [12.9, 0.0], [13.1, 0.0], [0.0, 5.0], [0.0, -5.0],
+                    [-5.0, 0.1], [-5.0, -0.1], [-0.1, 5.0]])
+    # 180 deg to the front, 13 m: the sector's edges (+-90 deg) are in, behind is out
+    front = in_view(pts, (-90 * deg, 90 * deg, 13.0)).tolist()
+    assert front == [True, True, False, True, True, False, False, False]
+    # 270 deg, listed with a negative increment (angle_min +135 deg, angle_max -135 deg)
+    assert in_view(pts, (135 * deg, -135 * deg, 13.0)).tolist() == \
+        [True, True, False, True, True, False, False, True]
+    # the rear half, a sector across +-180 deg
+    assert in_view(pts, (90 * deg, 270 * deg, 13.0)).tolist() == \
+        [False, False, False, True, True, True, True, True]
+    # a full turn given as 0 .. 2 pi: only the range counts; no region: everything
+    assert in_view(pts, (0.0, 2 * np.pi, 13.0)).tolist() == [True] * 2 + [False] + [True] * 5
+    assert in_view(pts, None).all()
+    # the truth keeps what lies there, hidden or not
+    objs = [TruthObject(i, p, np.zeros(2), np.eye(2) * 0.04, 'pedestrian', b)
+            for i, (p, b) in enumerate(zip(pts[:4], [5, 0, 3, 0]))]
+    ids, m, X = truth_of(objs, (-90 * deg, 90 * deg, 13.0))
+    assert ids == [0, 1, 3] and m.shape == (3, 2) and X.shape == (3, 2, 2)
+
+
+def test_a_replayed_bag_is_scored_over_the_region_its_truth_file_gives(tmp_path):
+    write_sim_bag(tmp_path / 'scans', 'occlusion', seed=0, duration=3.0)
+    truth_path = tmp_path / 'scans' / 'truth.json'
+    truth = json.loads(truth_path.read_text())
+    assert truth['info']['view'] == [-np.pi / 2, np.pi / 2, 13.0]
+    cfg = from_dict({'background': {'enabled': False}})
+    replay(tmp_path / 'scans', tmp_path / 'out', cfg, progress=False)
+    inside, _, _ = evaluate_bag(tmp_path / 'out', truth_path)
+    # a ghost truth object far behind the scanner: outside the region it is not scored;
+    # without a region (an older truth file) it is a missed object in every scan
+    for scan in truth['scans']:
+        scan['objects'].append({'id': 99, 'kind': 'ghost', 'centre': [-5.0, 0.0],
+                                'velocity': [0.0, 0.0], 'extent': [[0.04, 0], [0, 0.04]],
+                                'visible_beams': 0})
+    truth_path.write_text(json.dumps(truth))
+    ghost, _, _ = evaluate_bag(tmp_path / 'out', truth_path)
+    assert ghost.gospa_mean == inside.gospa_mean and ghost.missed_mean == inside.missed_mean
+    del truth['info']['view']
+    truth_path.write_text(json.dumps(truth))
+    unbounded, _, _ = evaluate_bag(tmp_path / 'out', truth_path)
+    assert unbounded.missed_mean > inside.missed_mean + 1.9     # c^p / 2 = 2 per scan

@@ -50,7 +50,8 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
         raise BagError(f'output {out} exists; refusing to overwrite it')
     if scene not in SCENE_OF:
         raise BagError(f'unknown scene {scene!r}; choose one of {sorted(SCENE_OF)}')
-    data = laser.simulate(SCENE_OF[scene](), duration, seed)
+    sim_scene = SCENE_OF[scene]()
+    data = laser.simulate(sim_scene, duration, seed)
     store = message_typestore()
     truth = []
     with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
@@ -63,7 +64,10 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
                 {'id': o.id, 'kind': o.kind, 'centre': o.centre.tolist(),
                  'velocity': o.velocity.tolist(), 'extent': o.extent.tolist(),
                  'visible_beams': o.visible_beams} for o in objs]})
+    L = sim_scene.laser
     info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(data),
-            'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json')}
+            'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json'),
+            # the region the scanner covers: evaluate scores over it
+            'view': [L.angle_min, L.angle_max, L.range_max]}
     (out / 'truth.json').write_text(json.dumps({'info': info, 'scans': truth}))
     return info

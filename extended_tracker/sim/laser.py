@@ -198,7 +198,9 @@ def simulate(scene: Scene, duration: float, seed: int, t0_ns: int = 1_700_000_00
             r = np.where(nearer, hit, r)
             owner = np.where(nearer, i, owner)
             truth.append([i, c, vel, ob.extent(h), ob.kind])
-        counts = np.bincount(owner[owner >= 0], minlength=len(scene.objects))
+        # beams the object returns: the nearest hit, within the scanner's range
+        counts = np.bincount(owner[(owner >= 0) & (r <= L.range_max)],
+                             minlength=len(scene.objects))
         truth = [TruthObject(i, c, v, X, kind, int(counts[i])) for i, c, v, X, kind in truth]
         ranges = r + rng.normal(0.0, L.noise_std, L.n_beams)
         ranges = np.where(np.isfinite(r), ranges, np.inf)
