@@ -103,7 +103,7 @@ _DIAG = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
          'partitions': 0, 'cells': 0, 'pairs': 0,
          'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
          'capped_components': 0, 'oversized': 0, 'fused_labels': 0, 'relabelled': 0,
-         'handed_over': 0,
+         'handed_over': 0, 'grouped': 0,
          'beams': 0, **{f'masked_{k}': 0 for k in INVALID_KINDS}}
 _MASKED_KEY = {k: f'masked_{k}' for k in INVALID_KINDS}
 
@@ -140,8 +140,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     ``capped_components``, ``oversized`` (components dropped as too large or too
     uncertain), ``fused_labels`` (labels found to track an object another label
     tracks), ``relabelled`` (labels given a new id because they jumped farther than
-    ``extraction.max_speed`` allows) and ``handed_over`` (lost ids passed on to a new
-    object where the lost one would be).
+    ``extraction.max_speed`` allows), ``handed_over`` (lost ids passed on to a new
+    object where the lost one would be) and ``grouped`` (thin contour pieces reported as
+    part of another's object).
     """
     t0 = time.perf_counter()
     try:
@@ -229,7 +230,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d)
     for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
               'capped_cells', 'capped_components', 'oversized', 'fused_labels', 'relabelled',
-              'handed_over'):
+              'handed_over', 'grouped'):
         diag[k] = getattr(fdiag, k)
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
                        frame_id=frame, last_estimates=estimates, scans=state.scans + 1,

@@ -25,6 +25,9 @@ from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
 
 NEG_INF = -np.inf
+# a thin contour piece (see group_segments): semi-minor axis at most this, semi-major at least
+SEGMENT_MAX_SEMI_MINOR = 0.15        # m
+SEGMENT_MIN_SEMI_MAJOR = 0.5         # m
 
 
 @dataclass(frozen=True)
@@ -176,6 +179,7 @@ class StepDiagnostics:
     fused_labels: int = 0
     relabelled: int = 0
     handed_over: int = 0
+    grouped: int = 0
 
 
 def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
@@ -461,8 +465,97 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                                                  cfg)
     new_state = _record_reports(record, new_state, candidates)
     # report a label once it has been extracted confirm_scans scans in a row
-    shown = candidates.take(new_state.reported_scans >= cfg.extraction.confirm_scans)
-    return _remember_shown(state, new_state, shown, cfg.extraction.handover_time), shown, diag
+    confirmed = new_state.reported_scans >= cfg.extraction.confirm_scans
+    shown = candidates.take(confirmed)
+    new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time)
+    # the filter's own estimates are what the shown record keeps; the report groups the
+    # pieces of one contour
+    shown, diag.grouped = group_segments(shown, new_state.reported_scans[confirmed],
+                                         cfg.extraction.group_gap,
+                                         cfg.extraction.group_speed)
+    return new_state, shown, diag
+
+
+def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):
+    """
+    Report the thin pieces of one object's contour as that object.
+
+    A laser sees a car across a corner as an L: its long side and its end. Two thin
+    ellipses explain those returns far better than one ellipse over the car does (the
+    model spreads detections over the extent, the scanner sees the contour), so the filter
+    tracks two thin objects. Pieces at most ``SEGMENT_MAX_SEMI_MINOR`` thick and at least
+    ``SEGMENT_MIN_SEMI_MAJOR`` long whose ends are within ``gap`` of each other and whose
+    velocities differ by at most ``speed`` are reported as one object: the rectangle
+    around them in the frame of the longest piece (its extent the rectangle's second
+    moments), moving at their rate-weighted velocity, under the label of the most senior
+    piece (the most ``seniority``, reported scans in a row; then the smaller label), its
+    position covariance that piece's. Existence and visibility are the pieces' largest,
+    rate and detections their sums.
+
+    Returns the estimates (ascending labels) and the number of pieces grouped into
+    another's report.
+    """
+    k = len(est)
+    if gap <= 0 or k < 2:
+        return est, 0
+    # the semi-major axis squared is at most the trace: people are ruled out at once
+    X = est.X
+    long_ = (X[:, 0, 0] + X[:, 1, 1] >= SEGMENT_MIN_SEMI_MAJOR ** 2).nonzero()[0]
+    if len(long_) < 2:
+        return est, 0
+    major, minor, yaw = (a[long_] for a in est.axes())
+    thin = (minor <= SEGMENT_MAX_SEMI_MINOR) & (major >= SEGMENT_MIN_SEMI_MAJOR)
+    seg, major, minor, yaw = long_[thin], major[thin], minor[thin], yaw[thin]
+    if len(seg) < 2:
+        return est, 0
+    u = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
+    half = (0.5 * np.sqrt(3.0)) * major                # half the rectangle's length
+    centre = est.m[seg, :2]
+    ends = np.concatenate([centre + half[:, None] * u, centre - half[:, None] * u])  # (2s, 2)
+    s = len(seg)
+    d = ends[:, None, :] - ends[None, :, :]
+    d = np.sqrt(np.add.reduce(d * d, axis=2)).reshape(2, s, 2, s).min(axis=(0, 2))
+    dv = est.m[seg, None, 2:] - est.m[None, seg, 2:]
+    dv = np.sqrt(np.add.reduce(dv * dv, axis=2))
+    near = (d <= gap) & (dv <= speed)
+    np.fill_diagonal(near, False)
+    if not near.any():
+        return est, 0
+    parent = list(range(s))
+    for i, j in zip(*near.nonzero()):
+        union_min(parent, int(i), int(j))
+    roots = np.array([find_root(parent, i) for i in range(s)])
+    keep = np.ones(k, dtype=bool)
+    out = Estimates(est.label.copy(), est.existence.copy(), est.m.copy(), est.P.copy(),
+                    est.X.copy(), est.rate.copy(), est.num_detections.copy(),
+                    est.visibility.copy())
+    grouped = 0
+    for r in np.unique(roots):
+        members = (roots == r).nonzero()[0]
+        if len(members) < 2:
+            continue
+        rows = seg[members]
+        # the longest piece carries the report (ungrouped, it is the one nearest the
+        # object), then the most senior: most scans in a row, then the oldest
+        head = rows[np.lexsort((est.label[rows], -seniority[rows], -major[members]))[0]]
+        frame = np.column_stack([u[members[np.argmax(major[members])]], [0.0, 0.0]])
+        frame[:, 1] = -frame[1, 0], frame[0, 0]        # the normal
+        pts = np.concatenate([ends[members], ends[s + members]]) @ frame
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        length = hi[0] - lo[0]
+        width = hi[1] - lo[1] + np.sqrt(3.0) * minor[members].max()
+        w = np.maximum(est.rate[rows], 1e-9)
+        out.m[head, :2] = frame @ (0.5 * (lo + hi))
+        out.m[head, 2:] = (w[:, None] * est.m[rows, 2:]).sum(axis=0) / w.sum()
+        out.X[head] = frame @ np.diag([length ** 2 / 3.0, width ** 2 / 3.0]) @ frame.T
+        out.existence[head] = est.existence[rows].max()
+        out.visibility[head] = est.visibility[rows].max()
+        out.rate[head] = est.rate[rows].sum()
+        out.num_detections[head] = est.num_detections[rows].sum()
+        keep[rows] = False
+        keep[head] = True
+        grouped += len(rows) - 1
+    return out.take(keep), grouped
 
 
 def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerConfig):
