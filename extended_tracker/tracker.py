@@ -120,7 +120,8 @@ class FilterState:
         shown less than ``extraction.handover_time`` ago, ascending; ``shown_pos`` (s, 2)
         is where each was last shown, ``shown_vel`` (s, 2) its velocity then and
         ``shown_elapsed`` (s,) how long ago (s). A label's next report must be reachable
-        from there at ``extraction.max_speed`` or it is a new object.
+        from there within ``extraction.max_speed`` and ``extraction.max_accel`` or it is a
+        new object.
     label_clock : tuple of (float, int)
         ``(seconds ago, next_label then)`` at the start of each scan of the last
         ``extraction.handover_time`` seconds, oldest first: labels from the first
@@ -336,6 +337,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     -------
     state : FilterState
     estimates : Estimates
+        The confirmed labels, with the thin pieces of one contour reported as one object
+        (:func:`group_segments`).
     diagnostics : StepDiagnostics
 
     Raises
