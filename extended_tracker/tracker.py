@@ -541,8 +541,8 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
         # the longest piece carries the report (ungrouped, it is the one nearest the
         # object), then the most senior: most scans in a row, then the oldest
         head = rows[np.lexsort((est.label[rows], -seniority[rows], -major[members]))[0]]
-        frame = np.column_stack([u[members[np.argmax(major[members])]], [0.0, 0.0]])
-        frame[:, 1] = -frame[1, 0], frame[0, 0]        # the normal
+        ux, uy = u[members[np.argmax(major[members])]]
+        frame = np.array([[ux, -uy], [uy, ux]])        # the longest piece's axis, its normal
         pts = np.concatenate([ends[members], ends[s + members]]) @ frame
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         length = hi[0] - lo[0]
@@ -592,7 +592,7 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     at, known = _find_sorted(old.shown, est.label)
     d = est.m[:, :2] - old.shown_pos[at]
     t = old.shown_elapsed[at] + new.dt
-    jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1)) > ex.max_speed * t + ex.jump_slack)
+    jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1)) > _speed_reach(ex, t))
     if ex.max_accel > 0:
         d -= old.shown_vel[at] * t[:, None]          # from where its velocity carried it
         jumped |= known & (np.sqrt(np.add.reduce(d * d, axis=1))
@@ -613,6 +613,12 @@ def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Trac
     return (evolve(new, mixture=evolve(mix, label=label),
                    next_label=new.next_label + len(bad)),
             evolve(est, label=est_label).take(order), len(bad))
+
+
+def _speed_reach(ex, t):
+    """How far an id may be from where it was shown ``t`` seconds ago under the speed
+    limit: ``extraction.max_speed * t + extraction.jump_slack``."""
+    return ex.max_speed * t + ex.jump_slack
 
 
 def _remember_shown(old: FilterState, new: FilterState, shown: Estimates,
@@ -690,7 +696,7 @@ def _hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerC
     dist = np.sqrt(np.add.reduce(d * d, axis=2))       # (young, lost)
     # and never farther than the speed limit lets an id move (see _relabel_jumps)
     d = pos - last
-    reach = ex.max_speed * elapsed + ex.jump_slack
+    reach = _speed_reach(ex, elapsed)
     near = ((dist <= ex.handover_distance)
             & (np.sqrt(np.add.reduce(d * d, axis=2)) <= reach[None, :])).nonzero()
     if not len(near[0]):
