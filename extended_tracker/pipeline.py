@@ -26,7 +26,7 @@ with event ``foreign_frame``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 import time
 
 import numpy as np
@@ -37,7 +37,7 @@ from .memo import evolve
 from .sensing.background import BackgroundState, protected_beams, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability
-from .tracker import Estimates, FilterState, predict_state, update_state
+from .tracker import Estimates, FilterState, predict_state, StepDiagnostics, update_state
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame')
 
@@ -99,11 +99,10 @@ class StepResult:
     processing_time: float = 0.0
 
 
+# the filter's own counts, copied from its StepDiagnostics (detections are counted here)
+_FILTER_DIAG = tuple(f.name for f in fields(StepDiagnostics) if f.name != 'detections')
 _DIAG = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
-         'partitions': 0, 'cells': 0, 'pairs': 0,
-         'components': 0, 'births': 0, 'capped_partitions': 0, 'capped_cells': 0,
-         'capped_components': 0, 'oversized': 0, 'fused_labels': 0, 'relabelled': 0,
-         'handed_over': 0, 'grouped': 0,
+         **dict.fromkeys(_FILTER_DIAG, 0),
          'beams': 0, **{f'masked_{k}': 0 for k in INVALID_KINDS}}
 _MASKED_KEY = {k: f'masked_{k}' for k in INVALID_KINDS}
 
@@ -228,9 +227,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     new_filter, estimates, fdiag = update_state(
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
         visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d)
-    for k in ('partitions', 'cells', 'pairs', 'components', 'births', 'capped_partitions',
-              'capped_cells', 'capped_components', 'oversized', 'fused_labels', 'relabelled',
-              'handed_over', 'grouped'):
+    for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
                        frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
