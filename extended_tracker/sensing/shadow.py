@@ -97,18 +97,23 @@ def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray
 
 
 def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range, margin,
-                      with_mean: bool = True):
+                      with_shift: bool = True):
     """
     Fraction of the beams in each component's interval not blocked by a nearer return,
-    and the mean angle of the unblocked ones (``bearing`` where none is; ``None`` when
-    ``with_mean`` is false, which saves its sums).
+    and the angle (rad) from ``bearing`` to the middle of the part that is seen (0 where
+    nothing is; ``None`` when ``with_shift`` is false, which saves its sums).
 
     ``beam_range`` (B,) holds, per beam in message order, the range that may block (inf
     where nothing does). Beams of the interval outside the field of view count as hidden.
+
+    Both are exact where nothing hides the interval: the fraction is 1 and the shift 0, not
+    a rounding away from them. The shift is the mean angle of the free beams less that of
+    all the interval's beams (the beam grid's own offset from the bearing cancels), plus
+    the shift of the interval's middle where the field of view cuts it.
     """
     k = len(bearing)
     if k == 0 or len(scan.angles) == 0:
-        return np.zeros(k), (bearing.copy() if with_mean else None)
+        return np.zeros(k), (np.zeros(k) if with_shift else None)
     order, ang, step = scan.sorted_beams
     rng = scan.sorted_ranges if beam_range is scan.ranges else beam_range[order]
     lo = ang.searchsorted(bearing - half_angle, side='left')
@@ -122,16 +127,14 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     thr = r_near - margin
     blocked_n = np.zeros(k)
     # intervals whose nearest return is not nearer than the object are all free: their
-    # count is the width and their angle sum a prefix-sum difference. Worth it when the
+    # count is the width and their free beams are all their beams. Worth it when the
     # intervals hold more beams than the range-minimum table costs (B log2 B).
     if np.add.reduce(width) > len(ang) * math.log2(max(len(ang), 2)):
         clear = _range_min(rng, lo, hi) >= thr
-        if with_mean:
-            cum = np.concatenate([[0.0], ang.cumsum()])
-            free_sum = np.where(clear, cum[hi] - cum[lo], 0.0)
     else:
         clear = np.zeros(k, dtype=bool)
-        free_sum = np.zeros(k)
+    if with_shift:
+        free_mean = np.zeros(k)            # mean free angle less the mean of all, per row
     # the others: one padded gather per class of widths (up to 64 beams, then doubling),
     # so the work stays within twice their total width and the calls are a handful
     for ni in _width_classes(width, clear):
@@ -140,24 +143,32 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         inside = idx < hi[ni, None]
         idx = np.minimum(idx, len(ang) - 1)
         blocked = (rng[idx] < thr[ni, None]) & inside
-        blocked_n[ni] = blocked.sum(axis=1)
-        if with_mean:
-            free_sum[ni] = np.where(inside & ~blocked, ang[idx], 0.0).sum(axis=1)
+        n_blocked = blocked.sum(axis=1)
+        blocked_n[ni] = n_blocked
+        if with_shift:
+            a = np.where(inside, ang[idx], 0.0)
+            n_free = width[ni] - n_blocked
+            free_sum = np.where(blocked, 0.0, a).sum(axis=1)
+            # nothing blocked: the same sum over the same beams, so exactly 0
+            free_mean[ni] = np.where(
+                (n_blocked > 0) & (n_free > 0),
+                free_sum / np.maximum(n_free, 1) - a.sum(axis=1) / width[ni], 0.0)
     frac_visible = 1.0 - blocked_n / width
-    if with_mean:
-        n_free = width - blocked_n
-        mean_free = np.where(n_free > 0, free_sum / np.maximum(n_free, 1), bearing)
-    else:
-        mean_free = None
-    # part of the interval outside the field of view is not seen at all
+    # part of the interval outside the field of view is not seen at all: the lengths cut
+    # off each end are exactly 0 where the field of view holds it
     step = max(step, 1e-9)
+    start, end = bearing - half_angle, bearing + half_angle
+    cut_lo = np.maximum(np.minimum(scan.angle_lo - step / 2, end) - start, 0.0)
+    cut_hi = np.maximum(end - np.maximum(scan.angle_hi + step / 2, start), 0.0)
     span = 2 * half_angle
-    covered = np.maximum(np.minimum(bearing + half_angle, scan.angle_hi + step / 2)
-                         - np.maximum(bearing - half_angle, scan.angle_lo - step / 2), 0.0)
-    in_fov = np.where(span > 0,
-                      np.minimum(np.maximum(covered / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
+    in_fov = np.where(span > 0, np.minimum(np.maximum(
+        1.0 - (cut_lo + cut_hi) / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
     centre_in = (bearing >= scan.angle_lo - step / 2) & (bearing <= scan.angle_hi + step / 2)
-    return np.where(centre_in, frac_visible * in_fov, 0.0), mean_free
+    visible = np.where(centre_in, frac_visible * in_fov, 0.0)
+    if not with_shift:
+        return visible, None
+    shift = np.where(visible > 0, free_mean + 0.5 * (cut_lo - cut_hi), 0.0)
+    return visible, shift
 
 
 def _width_classes(width: np.ndarray, clear: np.ndarray) -> list:
@@ -208,17 +219,17 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     widen = det.max_widen > 0 and det.widen_sigmas > 0
     if det.model == 'scan_shadow' and widen:
         # both intervals of every component in one lookup
-        both, mean_free = _visible_fraction(
+        both, turn = _visible_fraction(
             np.concatenate([bearing, bearing]), np.concatenate([half, half_widened]),
             np.concatenate([r_near, r_near]), scan, scan.ranges, det.shadow_margin)
-        plain, visible, mean_free = both[:n], both[n:], mean_free[:n]
+        visible, turn = both[n:], turn[:n]
     else:
-        plain, mean_free = lookup(half)
+        plain, turn = lookup(half)
         visible = lookup(half_widened)[0] if widen else plain
-    # The visible part's centroid sits at the mean unshadowed angle, on the object's
-    # near range: an offset across the line of sight from the centre.
-    shift = np.where((plain > 0) & (plain < 1), _wrap(mean_free - bearing) * r_c, 0.0)
-    offset = across * shift[:, None]
+    # The visible part's centroid sits at the middle of its unshadowed beams, on the
+    # object's near range: an offset across the line of sight from the centre, exactly
+    # zero for an object in full view.
+    offset = across * (turn * r_c)[:, None]
     # wholly out of the field of view or beyond range: the object has left the scene
     step = abs(scan.angle_step)
     outside = ((r_near > scan.range_max) | (bearing + half < scan.angle_lo - step)
@@ -240,7 +251,7 @@ def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.
     order, ang_sorted, _ = scan.sorted_beams
     confident = mix.w >= min_weight
     visible = np.ones(n)
-    mean_free = bearing.copy()
+    turn = np.zeros(n)
     # for every component, the blocking range of each beam is the nearest far range of
     # another confident component (of another label) whose interval covers the beam
     for i in range(n):
@@ -253,10 +264,10 @@ def _estimate_shadow(mix, bearing, half, r_near, r_far, scan, det, min_weight=0.
             near = np.where(cover, r_near[oi, None], np.inf).min(axis=0)
             blocking = np.empty(len(scan.angles))
             blocking[order] = near
-        vis_i, mf_i = _visible_fraction(bearing[i:i + 1], half[i:i + 1], r_near[i:i + 1],
-                                        scan, blocking, det.shadow_margin)
-        visible[i], mean_free[i] = vis_i[0], mf_i[0]
-    return visible, mean_free
+        vis_i, turn_i = _visible_fraction(bearing[i:i + 1], half[i:i + 1], r_near[i:i + 1],
+                                          scan, blocking, det.shadow_margin)
+        visible[i], turn[i] = vis_i[0], turn_i[0]
+    return visible, turn
 
 
 def _wrap(a):
@@ -284,5 +295,5 @@ def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.nda
     bearing, _, half_widened, r_near, *_ = _geometry(
         m_updated, mix.expected_extent(comp), P_updated, det.widen_sigmas, det.max_widen)
     visible, _ = _visible_fraction(bearing, half_widened, r_near, scan, scan.ranges,
-                                   det.shadow_margin, with_mean=False)
+                                   det.shadow_margin, with_shift=False)
     return det.p_d0 * _seen(visible, r_near, scan, det)
