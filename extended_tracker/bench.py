@@ -13,13 +13,18 @@ Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
   percent from minute to minute: pooled median and p99, the spread of the rounds'
   medians, and how many rounds met the targets;
 - memory: resident memory over many scans (``--memory N``);
-- profile: where the time of the 4-pedestrian filter step goes (``--profile``).
+- profile: where the time of the 4-pedestrian filter step goes (``--profile``);
+- machine: the CPU, the numpy build's SIMD level, and a yardstick of the machine's speed
+  in the minute the figures were taken (a fixed workload of small numpy calls, the kind
+  the filter step is made of), timed at the start, in every target round and at the end.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
+import platform
 import resource
 import time
 
@@ -35,6 +40,46 @@ from .tracker import FilterState, filter_step
 def stress_scene() -> Scene:
     """S3: 40 pedestrians, 1081 beams over 270 deg, 30 m, 20 clutter returns per scan."""
     return crowd_scene(40, seed=11, beams=1081, fov_deg=270.0, range_max=30.0, clutter=20.0)
+
+
+def machine_line() -> str:
+    """The CPU, its count, and the Python and numpy builds the figures come from."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open('/proc/cpuinfo') as fh:
+            cpu = next((ln.split(':', 1)[1].strip() for ln in fh
+                        if ln.startswith('model name')), cpu)
+    except OSError:
+        pass
+    simd = np.show_config(mode='dicts').get('SIMD Extensions', {})
+    found = ' '.join(simd.get('found', [])) or 'baseline only'
+    import scipy
+
+    return (f'machine: {cpu}, {os.cpu_count()} CPUs; Python {platform.python_version()}, '
+            f'numpy {np.__version__} (SIMD {found}), scipy {scipy.__version__}')
+
+
+def reference_ms(reps: int = 15) -> float:
+    """
+    Median ms of a fixed workload: 1000 numpy operations on arrays of two dozen elements
+    with the Python around them, the kind of work a filter step is made of. Its swings from
+    minute to minute are the machine's, so it reads beside the step times.
+    """
+    a = np.linspace(-3.0, 3.0, 24)
+    b = a[::-1].copy()
+    idx = np.arange(0, 24, 2)
+    times = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        for _ in range(100):
+            c = np.exp(a - b)
+            s = np.add.reduce(c)
+            m = np.maximum(a, b)
+            order = m.argsort()
+            d = c[order] * s
+            np.concatenate([d[idx], a[:3]])
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times) * 1e3)
 
 
 def _stats(seconds):
@@ -184,7 +229,9 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
     pooled = {name: [] for name, *_ in cases}
     medians = {name: [] for name, *_ in cases}
     met = dict.fromkeys(pooled, 0)
+    yardstick = []
     for r in range(rounds):
+        yardstick.append(reference_ms())
         for name, run, med_t, p99_t in (cases if r % 2 == 0 else cases[::-1]):
             t = run()
             pooled[name] += t
@@ -201,6 +248,8 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
         target = ' / '.join('-' if t is None else f'{t:g}' for t in (med_t, p99_t))
         print(f'{name:40s} {med:9.2f} {p99:7.2f} {f"{lo:.2f}-{hi:.2f}":>17s} {target:>15s} '
               f'{f"{met[name]}/{rounds}":>10s}')
+    print('reference workload at the start of each round (ms): '
+          + ', '.join(f'{t:.2f}' for t in yardstick))
     return pooled
 
 
@@ -303,6 +352,9 @@ def main(argv=None) -> int:
         bench_profile()
         return 0
     scans = 60 if args.quick else 300
+    print(machine_line())
+    print(f'reference workload (1000 small numpy operations): {reference_ms():.2f} ms at the '
+          'start\n')
     bench_filter([0, 1, 2, 4, 10, 20, 50], scans)
     print()
     # the issue's second target case: 10 objects with ~250 returns (a finer, wider scan)
@@ -314,6 +366,7 @@ def main(argv=None) -> int:
     bench_scaling(args.png, 20 if args.quick else 60)
     if args.memory:
         bench_memory(args.memory)
+    print(f'\nreference workload: {reference_ms():.2f} ms at the end')
     return 0
 
 

@@ -2,7 +2,7 @@
 
 import pytest
 
-from extended_tracker.bench import bench_filter, bench_profile
+from extended_tracker.bench import bench_filter, bench_profile, machine_line, reference_ms
 
 
 def test_empty_scan_row_is_the_fixed_cost(capsys):
@@ -70,3 +70,15 @@ def test_target_rounds_report_every_case(capsys):
     # two rounds of one run's 10 steps after its 2 warm-up steps, and of the 10 scans
     # after the pipeline's 2 s of warm-up
     assert [len(t) for t in pooled.values()] == [20, 20, 20, 20, 20]
+
+
+def test_machine_line_and_yardstick():
+    """The figures say which CPU and builds they come from, and how fast the minute was."""
+    import os
+
+    import numpy as np
+
+    line = machine_line()
+    assert line.startswith('machine: ')
+    assert f'{os.cpu_count()} CPUs' in line and f'numpy {np.__version__} (SIMD ' in line
+    assert 0 < reference_ms(reps=3) < 1000
