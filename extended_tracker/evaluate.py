@@ -56,22 +56,31 @@ def _merge(a: dict, b: dict) -> dict:
     return out
 
 
+VIEW_EDGE = 1e-9       # rad and m: points this close to the region's edge count as in it
+
+
 def in_view(xy, view) -> np.ndarray:
     """
     Which of the points ``xy`` (k, 2) lie in the region a scanner covers, ``view =
     (angle_min, angle_max, range_max)``: its sector out to its range (all of them when
     ``view`` is None). The region the scores are taken over.
+
+    Points on the edge are in, within ``VIEW_EDGE``: the simulator walks objects along
+    the sector's edges (through (-8, 8) for a 270 deg scanner), and without the margin
+    their membership would rest on the last bit of ``arctan2``.
     """
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     if view is None:
         return np.ones(len(xy), dtype=bool)
     a0, a1, range_max = (float(v) for v in view)
     lo, width = min(a0, a1), abs(a1 - a0)             # angle_increment may be negative
-    near = np.hypot(xy[:, 0], xy[:, 1]) <= range_max
+    near = np.hypot(xy[:, 0], xy[:, 1]) <= range_max + VIEW_EDGE
     if width >= 2.0 * np.pi:
         return near
-    bearing = np.mod(np.arctan2(xy[:, 1], xy[:, 0]) - lo, 2.0 * np.pi)
-    return near & (bearing <= width)
+    # measured from VIEW_EDGE before the sector's start, so that a point just before it
+    # does not wrap round to 2 pi
+    bearing = np.mod(np.arctan2(xy[:, 1], xy[:, 0]) - (lo - VIEW_EDGE), 2.0 * np.pi)
+    return near & (bearing <= width + 2.0 * VIEW_EDGE)
 
 
 def view_of(scan):
