@@ -128,8 +128,8 @@ class Mixture:
         Returns
         -------
         order : (n,) int array
-            Component indices, labels ascending, weights descending within a label (ties
-            by index).
+            Component indices, labels ascending, weights descending within a label (ties,
+            to float32's precision, by index: :func:`weight_key`).
         is_head : (n,) bool array
             Over ``order``: the first (heaviest) component of its label.
         group : (n,) int array
@@ -158,11 +158,25 @@ class Mixture:
 
     @cached_property
     def _by_label(self):
-        order = np.lexsort((-self.w, self.label))
+        order = np.lexsort((-weight_key(self.w), self.label))
         lab = self.label[order]
         is_head = np.ones(len(order), dtype=bool)
         is_head[1:] = lab[1:] != lab[:-1]
         return read_only(order, is_head, is_head.cumsum() - 1)
+
+
+def weight_key(w) -> np.ndarray:
+    """
+    Weights as keys for ordering: rounded to float32, so that weights equal but for their
+    last bits tie, and the stable sorts order them by index, on every CPU.
+
+    Such ties are structural: the CPHD update gives each cell that one component alone
+    explains the weight of its partition, every cell through roundings of its own, and
+    numpy's float64 ``exp`` and ``log`` differ in the last bit between CPUs. Which of two
+    tied components heads a label (is reported, absorbs the other, keeps the label) must
+    not rest on those bits.
+    """
+    return np.asarray(w, dtype=np.float32)
 
 
 # --- closed-form 2x2 symmetric positive definite helpers (batched over leading axes) ---

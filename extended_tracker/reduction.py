@@ -16,7 +16,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import digamma, zeta
 
-from .ggiw import D, eig2, einsum, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize
+from .ggiw import (
+    D, eig2, einsum, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize, weight_key,
+)
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -230,7 +232,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
                    np.add.reduceat(wn * nu_i, starts))
     V = _floor_extent(nu[:, None, None] * iPsi, nu + D + 1)
     # label of the heaviest member
-    order = np.lexsort((-w, gid))
+    order = np.lexsort((-weight_key(w), gid))
     first = order[starts]
     label = mix.label[idx][first]
     return Mixture(W, a, b, m, symmetrize(P), nu + D + 1, symmetrize(V), label)
@@ -306,7 +308,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     merged = Mixture.concat(parts)
     capped = 0
     if len(merged) > max_components:
-        order = (-merged.w).argsort(kind='stable')[:max_components]
+        order = (-weight_key(merged.w)).argsort(kind='stable')[:max_components]
         capped = len(merged) - max_components
         merged = merged.take(np.sort(order))
     return merged, capped

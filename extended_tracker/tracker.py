@@ -18,7 +18,7 @@ from .config import TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
 from .ggiw import (
     cell_stats, eig2, einsum, gate_covariance, gate_pairs, inv2, IW_OFFSET, log_miss_factor,
-    Mixture, predict, update_pairs,
+    Mixture, predict, update_pairs, weight_key,
 )
 from .memo import cached_tables, evolve, read_only
 from .partition import build_partitions, find_root, union_min
@@ -818,7 +818,7 @@ def _cell_claims(mix: Mixture, comp, cell, w_det, n_cells):
     labels, rank, _ = mix.per_label()
     per = np.zeros((len(labels), n_cells))
     np.add.at(per, (rank[comp], cell), w_det)
-    best = per.argmax(axis=0)
+    best = weight_key(per).argmax(axis=0)             # ties: the first label
     return labels[best], per[best, np.arange(n_cells)]
 
 
@@ -867,7 +867,7 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     pair_lab = inv[comp]
     detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
     missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
-    order = np.lexsort((-w_det, pair_lab))            # heaviest pair first in each label
+    order = np.lexsort((-weight_key(w_det), pair_lab))  # heaviest pair first per label
     lab = pair_lab[order]
     first = order[np.concatenate([[True], lab[1:] != lab[:-1]])]
     ok = detected[pair_lab[first]] > missed[pair_lab[first]]
@@ -985,7 +985,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     label = mix.label.copy()
     # fresh labels in order of weight, as the objects they stand for are found
     new = heavy.nonzero()[0]
-    new = new[(-mix.w[new]).argsort(kind='stable')]
+    new = new[(-weight_key(mix.w[new])).argsort(kind='stable')]
     label[new] = next_label + np.arange(len(new))
     keep = ~(far & ~heavy)
     return evolve(mix, label=label).take(keep), next_label + len(new)
@@ -1004,7 +1004,7 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     by_lab, is_head, _ = mix.by_label()
     heads = by_lab[is_head]                            # one per label, labels ascending
     labels, _, weight = mix.per_label()
-    order = (-weight).argsort(kind='stable')
+    order = (-weight_key(weight)).argsort(kind='stable')
     ex = cfg.extraction
     if cfg.model.mode == 'cphd':
         n_hat = int(state.log_card.argmax())
