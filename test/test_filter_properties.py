@@ -156,6 +156,29 @@ def test_cardinality_prediction_is_a_pmf(raw, p_s, birth):
     assert np.all(out >= 0)
 
 
+@given(st.lists(st.floats(0.0, 1.0), min_size=3, max_size=41), st.floats(0.5, 1.0),
+       st.floats(0.0, 3.0))
+def test_cardinality_prediction_matches_enumeration(raw, p_s, birth):
+    """
+    Oracle: each of l objects survives independently with p_S (binomial thinning), then
+    a Poisson number is born; enumerate every l and every number of survivors with
+    scipy's binomial and Poisson pmfs, drop what lies beyond N_max and renormalise.
+    """
+    from scipy.stats import binom, poisson
+
+    p = np.asarray(raw) + 1e-9
+    p = p / p.sum()
+    n_max = len(p) - 1
+    want = np.zeros(n_max + 1)
+    for n_prev, p_prev in enumerate(p):
+        for s in range(n_prev + 1):
+            born = np.arange(n_max + 1 - s)
+            want[s + born] += p_prev * binom.pmf(s, n_prev, p_s) * poisson.pmf(born, birth)
+    want /= want.sum()
+    got = np.exp(predict_cardinality(np.log(p), p_s, birth))
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-15)
+
+
 @given(st.integers(0, 10_000), st.sampled_from(['cphd', 'phd']))
 def test_filter_step_cardinality_sums_to_one(seed, mode):
     from extended_tracker.config import from_dict
