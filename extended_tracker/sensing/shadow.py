@@ -134,7 +134,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     else:
         clear = np.zeros(k, dtype=bool)
     if with_shift:
-        free_mean = np.zeros(k)            # mean free angle less the mean of all, per row
+        free_turn = np.zeros(k)            # mean free angle less the mean of all, per row
     # the others: one padded gather per class of widths (up to 64 beams, then doubling),
     # so the work stays within twice their total width and the calls are a handful
     for ni in _width_classes(width, clear):
@@ -149,8 +149,8 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
             a = np.where(inside, ang[idx], 0.0)
             n_free = width[ni] - n_blocked
             free_sum = np.where(blocked, 0.0, a).sum(axis=1)
-            # nothing blocked: the same sum over the same beams, so exactly 0
-            free_mean[ni] = np.where(
+            # exactly 0 where nothing (or everything) is blocked
+            free_turn[ni] = np.where(
                 (n_blocked > 0) & (n_free > 0),
                 free_sum / np.maximum(n_free, 1) - a.sum(axis=1) / width[ni], 0.0)
     frac_visible = 1.0 - blocked_n / width
@@ -167,7 +167,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     visible = np.where(centre_in, frac_visible * in_fov, 0.0)
     if not with_shift:
         return visible, None
-    shift = np.where(visible > 0, free_mean + 0.5 * (cut_lo - cut_hi), 0.0)
+    shift = np.where(visible > 0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
     return visible, shift
 
 
