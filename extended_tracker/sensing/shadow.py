@@ -97,11 +97,12 @@ def _range_min(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray
 
 
 def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range, margin,
-                      with_shift: bool = True):
+                      shift_rows: int | None = None):
     """
     Fraction of the beams in each component's interval not blocked by a nearer return,
     and the angle (rad) from ``bearing`` to the middle of the part that is seen (0 where
-    nothing is; ``None`` when ``with_shift`` is false, which saves its sums).
+    nothing is) for the first ``shift_rows`` intervals (all of them when None; the others
+    read 0, and with ``shift_rows=0`` the shift is ``None``: its sums are saved).
 
     ``beam_range`` (B,) holds, per beam in message order, the range that may block (inf
     where nothing does). Beams of the interval outside the field of view count as hidden.
@@ -112,6 +113,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     the shift of the interval's middle where the field of view cuts it.
     """
     k = len(bearing)
+    with_shift = shift_rows is None or shift_rows > 0
     if k == 0 or len(scan.angles) == 0:
         return np.zeros(k), (np.zeros(k) if with_shift else None)
     order, ang, step = scan.sorted_beams
@@ -146,13 +148,18 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         n_blocked = blocked.sum(axis=1)
         blocked_n[ni] = n_blocked
         if with_shift:
-            a = np.where(inside, ang[idx], 0.0)
+            # only partly blocked intervals turn (the others stay exactly 0), and only
+            # those whose shift is asked for
             n_free = width[ni] - n_blocked
-            free_sum = np.where(blocked, 0.0, a).sum(axis=1)
-            # exactly 0 where nothing (or everything) is blocked
-            free_turn[ni] = np.where(
-                (n_blocked > 0) & (n_free > 0),
-                free_sum / np.maximum(n_free, 1) - a.sum(axis=1) / width[ni], 0.0)
+            part = (n_blocked > 0) & (n_free > 0)
+            if shift_rows is not None:
+                part &= ni < shift_rows
+            rows = part.nonzero()[0]
+            if len(rows):
+                a = np.where(inside[rows], ang[idx[rows]], 0.0)
+                free_sum = np.where(blocked[rows], 0.0, a).sum(axis=1)
+                free_turn[ni[rows]] = (free_sum / n_free[rows]
+                                       - a.sum(axis=1) / width[ni[rows]])
     frac_visible = 1.0 - blocked_n / width
     # part of the interval outside the field of view is not seen at all: the lengths cut
     # off each end are exactly 0 where the field of view holds it
@@ -168,6 +175,8 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     if not with_shift:
         return visible, None
     shift = np.where(visible > 0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
+    if shift_rows is not None:
+        shift[shift_rows:] = 0.0
     return visible, shift
 
 
@@ -221,7 +230,8 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
         # both intervals of every component in one lookup
         both, turn = _visible_fraction(
             np.concatenate([bearing, bearing]), np.concatenate([half, half_widened]),
-            np.concatenate([r_near, r_near]), scan, scan.ranges, det.shadow_margin)
+            np.concatenate([r_near, r_near]), scan, scan.ranges, det.shadow_margin,
+            shift_rows=n)                             # the offset is the plain interval's
         visible, turn = both[n:], turn[:n]
     else:
         plain, turn = lookup(half)
@@ -295,5 +305,5 @@ def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.nda
     bearing, _, half_widened, r_near, *_ = _geometry(
         m_updated, mix.expected_extent(comp), P_updated, det.widen_sigmas, det.max_widen)
     visible, _ = _visible_fraction(bearing, half_widened, r_near, scan, scan.ranges,
-                                   det.shadow_margin, with_shift=False)
+                                   det.shadow_margin, shift_rows=0)
     return det.p_d0 * _seen(visible, r_near, scan, det)
