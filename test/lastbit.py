@@ -41,6 +41,16 @@ class LastBitNoise:
         return out
 
 
+def assert_same_tracks(plain, other, atol, least):
+    """Two runs' per-scan ``(labels, means)``: the same ids in every scan, the means within
+    ``atol``; ``plain`` holds at least ``least`` reports (the comparison has substance)."""
+    assert sum(len(labels) for labels, _ in plain) >= least
+    assert len(plain) == len(other)
+    for (la, ma), (lb, mb) in zip(plain, other):
+        assert list(la) == list(lb)
+        np.testing.assert_allclose(ma, mb, rtol=0, atol=atol)
+
+
 def other_cpu(monkeypatch, salt=0):
     """Replace the numpy functions of ``FUNCTIONS`` by :class:`LastBitNoise` ones."""
     for k, name in enumerate(FUNCTIONS):

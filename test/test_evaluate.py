@@ -12,6 +12,7 @@ from extended_tracker.sim.laser import TruthObject
 from extended_tracker.replay import replay
 from extended_tracker.config import from_dict
 from extended_tracker.sim.bag import write_sim_bag
+
 from lastbit import other_cpu
 
 
