@@ -2,8 +2,10 @@
 Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
 
 - filter: one full filter step (partition, predict, update, reduce, extract) on the
-  returns of simulated scans of N pedestrians, against N and the detections; N = 0 (no
-  returns, no tracks) is the fixed cost of the chain that every scan pays;
+  returns of simulated scans of N pedestrians, against N (1-50) and, in finer scans, the
+  detections (to about 1000); N = 0 (no returns, no tracks) is the fixed cost of the
+  chain that every scan pays. The growth of the time above that fixed cost is fitted as
+  a power of objects x cells and of the detections (1 is linear);
 - pipeline: ``pipeline.step`` on the scenario scans S1 (tutorial-like, 361 beams, four
   pedestrians), S2 (1081 beams / 270 deg, a car, two bicycles, seven pedestrians, 3
   clutter returns) and S3 (1081 beams, 40 objects, 20 clutter returns), with the caps
@@ -93,23 +95,83 @@ def bench_filter(counts, scans, warm=10, run_scans=60, beams=361, fov_deg=180.0)
 
     Each case repeats short runs of ``run_scans`` scans over several seeds, so that the
     walkers are still in view (over a long run they walk out of the field of view).
+    Returns ``(objects, detections, cells, median ms)`` per case.
     """
-    cfg = from_dict({'background': {'enabled': False}})
     print(f'filter step (partition, predict, update, reduce, extract), {beams} beams over '
           f'{fov_deg:g} deg, p_D const')
     print(f'{"objects":>8s} {"detections":>10s} {"cells":>6s} {"partitions":>10s} '
           f'{"median ms":>9s} {"p99 ms":>7s}')
     rows = []
     for n in counts:
-        runs = _pedestrian_runs(n, max(1, scans // run_scans), run_scans, warm, beams, fov_deg)
-        times, diags = _filter_times(runs, cfg, warm)
-        dets = np.mean([d.detections for d in diags])
-        cells = np.mean([d.cells for d in diags])
-        parts = np.mean([d.partitions for d in diags])
-        med, p99, _ = _stats(times)
+        dets, cells, parts, med, p99 = _filter_case(n, beams, fov_deg, scans, warm, run_scans)
         rows.append((n, dets, cells, med))
         print(f'{n:8d} {dets:10.0f} {cells:6.0f} {parts:10.1f} {med:9.2f} {p99:7.2f}')
     return rows
+
+
+def _filter_case(n, beams, fov_deg, scans, warm=10, run_scans=60):
+    """Mean detections, cells and partitions, and the median and p99 ms of the filter
+    step on ``n`` pedestrians in a scan of ``beams`` beams over ``fov_deg``."""
+    cfg = from_dict({'background': {'enabled': False}})
+    runs = _pedestrian_runs(n, max(1, scans // run_scans), run_scans, warm, beams, fov_deg)
+    times, diags = _filter_times(runs, cfg, warm)
+    med, p99, _ = _stats(times)
+    return (float(np.mean([d.detections for d in diags])),
+            float(np.mean([d.cells for d in diags])),
+            float(np.mean([d.partitions for d in diags])), med, p99)
+
+
+# the detections sweep: 10 and 50 pedestrians in ever finer 180 deg scans, to ~1000 returns
+DETECTION_CASES = ((10, 1081), (10, 2000), (10, 3400), (50, 721), (50, 1450))
+
+
+def bench_detections(scans, cases=DETECTION_CASES, warm=10, run_scans=60):
+    """
+    The filter step against the detections: pedestrians in finer scans (more beams on
+    each of them). Returns ``(objects, detections, cells, median ms)`` per case.
+    """
+    print('filter step against the detections (finer scans over 180 deg), p_D const')
+    print(f'{"objects":>8s} {"beams":>6s} {"detections":>10s} {"cells":>6s} '
+          f'{"partitions":>10s} {"median ms":>9s} {"p99 ms":>7s}')
+    rows = []
+    for n, beams in cases:
+        dets, cells, parts, med, p99 = _filter_case(n, beams, 180.0, scans, warm, run_scans)
+        rows.append((n, dets, cells, med))
+        print(f'{n:8d} {beams:6d} {dets:10.0f} {cells:6.0f} {parts:10.1f} {med:9.2f} '
+              f'{p99:7.2f}')
+    return rows
+
+
+def growth_exponent(x, y) -> float:
+    """
+    Least-squares slope of ``log y`` against ``log x``: ``y ~ x^k`` gives ``k`` (1 is
+    linear growth, below 1 slower).
+    """
+    x = np.log(np.asarray(x, dtype=float))
+    y = np.log(np.asarray(y, dtype=float))
+    x = x - x.mean()
+    return float(np.dot(x, y - y.mean()) / np.dot(x, x))
+
+
+def report_growth(rows, fixed_ms: float) -> tuple[float, float]:
+    """
+    How the filter step's cost grows: the exponent of its time above the fixed cost
+    (the step on a scan with no returns and no tracks) against objects x cells and
+    against detections, over ``rows`` of ``(objects, detections, cells, median ms)``
+    (those with objects and a time above the fixed cost). Printed and returned.
+    """
+    used = [(n, d, c, t - fixed_ms) for n, d, c, t in rows if n > 0 and t > fixed_ms]
+    if len(used) < 2:
+        print('growth: too few cases above the fixed cost to fit')
+        return float('nan'), float('nan')
+    n, d, c, extra = (np.array(a) for a in zip(*used))
+    k_oc = growth_exponent(n * c, extra)
+    k_d = growth_exponent(d, extra)
+    print(f'growth of the filter step above its fixed cost ({fixed_ms:.2f} ms), {len(used)} '
+          f'cases: time ~ (objects x cells)^{k_oc:.2f} '
+          f'(objects x cells {int((n * c).min())}-{int((n * c).max())}), '
+          f'~ detections^{k_d:.2f} ({int(d.min())}-{int(d.max())}); 1 is linear')
+    return k_oc, k_d
 
 
 def _filter_times(runs, cfg, warm):
@@ -355,10 +417,13 @@ def main(argv=None) -> int:
     print(machine_line())
     print(f'reference workload (1000 small numpy operations): {reference_ms():.2f} ms at the '
           'start\n')
-    bench_filter([0, 1, 2, 4, 10, 20, 50], scans)
+    rows = bench_filter([0, 1, 2, 4, 10, 20, 50], scans)
     print()
     # the issue's second target case: 10 objects with ~250 returns (a finer, wider scan)
-    bench_filter([10], scans, beams=1081, fov_deg=270.0)
+    rows += bench_filter([10], scans, beams=1081, fov_deg=270.0)
+    print()
+    rows += bench_detections(scans)
+    report_growth(rows, rows[0][3])
     bench_pipeline(scans)
     if args.rounds > 0:
         bench_targets(args.rounds, scans)

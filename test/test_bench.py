@@ -82,3 +82,52 @@ def test_machine_line_and_yardstick():
     assert line.startswith('machine: ')
     assert f'{os.cpu_count()} CPUs' in line and f'numpy {np.__version__} (SIMD ' in line
     assert 0 < reference_ms(reps=3) < 1000
+
+
+def test_growth_exponent_recovers_a_power_law():
+    """Oracle: y = a x^k gives k exactly, whatever a; linear growth gives 1."""
+    import numpy as np
+
+    from extended_tracker.bench import growth_exponent
+
+    x = np.array([3.0, 28.0, 180.0, 740.0, 1900.0])
+    for k in (0.3, 1.0, 2.0):
+        assert growth_exponent(x, 0.02 * x ** k) == pytest.approx(k, abs=1e-12)
+
+
+def test_report_growth_fits_the_time_above_the_fixed_cost(capsys):
+    """Oracle: rows made from ``fixed + a (objects x cells)^0.6`` with detections
+    ``5 (objects x cells)^0.5``, so the time above the fixed cost goes as detections^1.2:
+    the fits recover both exponents; the N = 0 row is left out."""
+    from extended_tracker.bench import report_growth
+
+    fixed = 0.7
+    cases = [(1, 3), (4, 7), (10, 18), (20, 37), (50, 38)]
+    rows = [(0, 0.0, 0.0, fixed)] + [
+        (n, 5.0 * (n * c) ** 0.5, float(c), fixed + 0.01 * (n * c) ** 0.6) for n, c in cases]
+    k_oc, k_d = report_growth(rows, fixed)
+    assert k_oc == pytest.approx(0.6, abs=1e-12)
+    assert k_d == pytest.approx(1.2, abs=1e-12)
+    out = capsys.readouterr().out
+    assert 'above its fixed cost (0.70 ms), 5 cases' in out
+    assert '(objects x cells)^0.60' in out and 'detections^1.20' in out
+    assert '1 is linear' in out
+
+
+def test_report_growth_says_when_it_cannot_fit(capsys):
+    from extended_tracker.bench import report_growth
+
+    k_oc, k_d = report_growth([(0, 0.0, 0.0, 1.0), (4, 46.0, 7.0, 0.9)], 1.0)
+    assert k_oc != k_oc and k_d != k_d                  # NaN: nothing to fit
+    assert 'too few cases' in capsys.readouterr().out
+
+
+def test_detections_sweep_prints_its_cases(capsys):
+    from extended_tracker.bench import bench_detections
+
+    rows = bench_detections(scans=6, cases=((2, 721),), warm=2, run_scans=6)
+    (n, detections, cells, median_ms), = rows
+    assert n == 2 and detections > 0 and cells >= 1 and median_ms > 0
+    out = capsys.readouterr().out
+    assert 'filter step against the detections' in out
+    assert any(line.split()[:2] == ['2', '721'] for line in out.splitlines())
