@@ -16,9 +16,10 @@ Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
   medians, and how many rounds met the targets;
 - memory: resident memory over many scans (``--memory N``);
 - profile: where the time of the 4-pedestrian filter step goes (``--profile``);
-- machine: the CPU, the numpy build's SIMD level, and a yardstick of the machine's speed
-  in the minute the figures were taken (a fixed workload of small numpy calls, the kind
-  the filter step is made of), timed at the start, in every target round and at the end.
+- machine: the CPU, the numpy build's SIMD level, the cost of float64 ``exp`` per
+  element (scalar or vectorised), and a yardstick of the machine's speed in the minute
+  the figures were taken (a fixed workload of small numpy calls, the kind the filter step
+  is made of), timed at the start, in every target round and at the end.
 """
 
 from __future__ import annotations
@@ -59,6 +60,22 @@ def machine_line() -> str:
 
     return (f'machine: {cpu}, {os.cpu_count()} CPUs; Python {platform.python_version()}, '
             f'numpy {np.__version__} (SIMD {found}), scipy {scipy.__version__}')
+
+
+def exp_ns(reps: int = 15, size: int = 4096) -> float:
+    """
+    Median ns per element of ``np.exp`` on float64: where numpy has no vectorised kernel
+    for the CPU it calls the C library's scalar ``exp``, several times slower, and the
+    filter's log-domain sums pay it (a few thousand elements a step).
+    """
+    x = np.linspace(-30.0, 0.0, size)
+    out = np.empty(size)
+    times = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        np.exp(x, out=out)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times) / size * 1e9)
 
 
 def reference_ms(reps: int = 15) -> float:
@@ -415,6 +432,7 @@ def main(argv=None) -> int:
         return 0
     scans = 60 if args.quick else 300
     print(machine_line())
+    print(f'float64 exp: {exp_ns():.1f} ns per element')
     print(f'reference workload (1000 small numpy operations): {reference_ms():.2f} ms at the '
           'start\n')
     rows = bench_filter([0, 1, 2, 4, 10, 20, 50], scans)

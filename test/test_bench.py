@@ -2,7 +2,8 @@
 
 import pytest
 
-from extended_tracker.bench import bench_filter, bench_profile, machine_line, reference_ms
+from extended_tracker.bench import (bench_filter, bench_profile, exp_ns, machine_line,
+                                    reference_ms)
 
 
 def test_empty_scan_row_is_the_fixed_cost(capsys):
@@ -82,6 +83,7 @@ def test_machine_line_and_yardstick():
     assert line.startswith('machine: ')
     assert f'{os.cpu_count()} CPUs' in line and f'numpy {np.__version__} (SIMD ' in line
     assert 0 < reference_ms(reps=3) < 1000
+    assert 0 < exp_ns(reps=3) < 1e4
 
 
 def test_growth_exponent_recovers_a_power_law():
