@@ -267,3 +267,85 @@ def test_leave_one_out_sums_against_direct_products():
         if len(a) < k:
             full = np.log(sum(np.exp(log_b[i, r]) * e_full[r] for r in range(len(a) + 1)))
             np.testing.assert_allclose(out[i, len(a):], full, rtol=1e-12)
+
+
+def _log_domain_terms(log_a, log_b):
+    from extended_tracker.cphd import leave_one_out_sums, log_esf_prefixes
+
+    pre = log_esf_prefixes(log_a)
+    return pre[log_a.shape[1]], leave_one_out_sums(pre, log_a, log_b)
+
+
+def test_scaled_esf_terms_against_enumeration():
+    """The linear-domain path: e_r and leave-one-out sums of padded rows by enumeration,
+    with values spread over 80 orders of magnitude (inside the path's floor)."""
+    from itertools import combinations
+
+    from extended_tracker import cphd
+
+    rng = np.random.default_rng(8)
+    k = 6
+    rows = [rng.uniform(0.05, 5.0, k), rng.uniform(0.05, 5.0, 3),
+            np.exp([-90.0, 95.0, 3.0]), np.zeros(0)]
+    log_a = np.full((len(rows), k), -np.inf)
+    for i, a in enumerate(rows):
+        log_a[i, :len(a)] = np.log(a)
+    log_b = np.log(rng.uniform(0.1, 3.0, (len(rows), k))) + 40.0 * np.arange(k)
+    spy = []
+    real = cphd.log_esf_prefixes
+    cphd.log_esf_prefixes = lambda x: spy.append(1) or real(x)
+    try:
+        log_e, loo = cphd.esf_terms(log_a, log_b, min_work=0)
+    finally:
+        cphd.log_esf_prefixes = real
+    assert not spy                                      # the scaled path was taken
+    for i, a in enumerate(rows):
+        e_full = [sum(np.prod(c) for c in combinations(a, r)) for r in range(len(a) + 1)]
+        np.testing.assert_allclose(log_e[i, :len(a) + 1], np.log(e_full), rtol=1e-13,
+                                   atol=1e-13)
+        assert np.all(log_e[i, len(a) + 1:] == -np.inf)
+        for j in range(len(a)):
+            rest = np.delete(a, j)
+            ref = sum(np.exp(log_b[i, r]) * sum(np.prod(c) for c in combinations(rest, r))
+                      for r in range(len(rest) + 1))
+            assert loo[i, j] == pytest.approx(np.log(ref), rel=1e-13)
+
+
+def test_scaled_esf_terms_match_the_log_domain_recursions():
+    """Random batches like the CPHD update's (active singletons of each partition, -inf
+    padded, coefficients -inf past each row's count): both paths agree to rounding."""
+    from extended_tracker.cphd import esf_terms
+
+    rng = np.random.default_rng(9)
+    for trial in range(20):
+        p, k = rng.integers(1, 8), rng.integers(1, 40)
+        count = rng.integers(0, k + 1, p)
+        log_a = rng.normal(0.0, 6.0, (p, k)) + rng.normal(0.0, 20.0, (p, 1))
+        log_b = rng.normal(0.0, 30.0, (p, k)) + 5.0 * np.arange(k)
+        for i, c in enumerate(count):
+            log_a[i, c:] = -np.inf
+            log_b[i, c:] = -np.inf
+        log_e, loo = esf_terms(log_a, log_b, min_work=0)
+        ref_e, ref_loo = _log_domain_terms(log_a, log_b)
+        np.testing.assert_allclose(log_e, ref_e, rtol=1e-12, atol=1e-9)
+        for i, c in enumerate(count):                   # the sums the update reads
+            np.testing.assert_allclose(loo[i, :c], ref_loo[i, :c], rtol=1e-12, atol=1e-9)
+        e_only, none = esf_terms(log_a, None, min_work=0)
+        assert none is None and np.array_equal(e_only, log_e)
+
+
+def test_esf_terms_keep_the_log_domain_for_extreme_spreads():
+    """A row whose values span hundreds of orders of magnitude (their scaled product
+    below the floor) sends the batch to the log-domain recursions, values unchanged; so
+    does a batch smaller than ``min_work``."""
+    from extended_tracker import cphd
+
+    log_a = np.array([[0.0, -300.0, -400.0], [1.0, 2.0, -np.inf]])
+    log_b = np.array([[0.0, 1.0, 2.0], [0.5, 0.2, -np.inf]])
+    assert (log_a[0] - log_a[0].max()).sum() < cphd.LINEAR_FLOOR
+    log_e, loo = cphd.esf_terms(log_a, log_b, min_work=0)
+    ref_e, ref_loo = _log_domain_terms(log_a, log_b)
+    assert np.array_equal(log_e, ref_e) and np.array_equal(loo, ref_loo)
+    small = cphd.esf_terms(log_a[1:], log_b[1:])          # 1 x 3^2 elements
+    ref_small = _log_domain_terms(log_a[1:], log_b[1:])
+    assert np.array_equal(small[0], ref_small[0]) and np.array_equal(small[1], ref_small[1])
