@@ -364,8 +364,13 @@ def _rss_mb():
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def bench_scaling(png: str, scans: int = 40):
-    """Time against objects (1-50, 361 beams) and against beams (361-4000, 10 objects)."""
+def bench_scaling(png: str, scans: int = 40, growth_rows=None, fixed_ms: float = 0.0):
+    """
+    Time against objects (1-50, 361 beams) and against beams (361-4000, 10 objects); with
+    ``growth_rows`` (``(objects, detections, cells, median ms)`` of filter steps) a third
+    panel: their time above ``fixed_ms`` against objects x cells, log-log, with the fitted
+    power and a linear slope for reference.
+    """
     cfg = from_dict({'background': {'enabled': False}})
     rows_o, rows_b = [], []
     for n in (1, 2, 5, 10, 20, 30, 40, 50):
@@ -380,13 +385,30 @@ def bench_scaling(png: str, scans: int = 40):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4), dpi=110)
+    used = [(n * c, t - fixed_ms) for n, _, c, t in (growth_rows or [])
+            if n > 0 and t > fixed_ms]
+    fig, axes = plt.subplots(1, 3 if len(used) >= 2 else 2,
+                             figsize=(15 if len(used) >= 2 else 10, 4), dpi=110)
+    a1, a2 = axes[0], axes[1]
     a1.plot(*zip(*rows_o), 'o-')
     a1.set_xlabel('objects (361 beams)')
     a1.set_ylabel('median ms per scan (pipeline.step)')
     a2.plot(*zip(*rows_b), 'o-')
     a2.set_xlabel('beams (10 objects)')
-    for a in (a1, a2):
+    if len(used) >= 2:
+        x, y = (np.array(a, dtype=float) for a in zip(*used))
+        k = growth_exponent(x, y)
+        xs = np.geomspace(x.min(), x.max(), 50)
+        # the fit's line and a linear slope, both through the cases' geometric mean
+        gx, gy = np.exp(np.log(x).mean()), np.exp(np.log(y).mean())
+        a3 = axes[2]
+        a3.loglog(x, y, 'o', label='filter step cases')
+        a3.loglog(xs, gy * (xs / gx) ** k, '-', label=f'fit: (objects x cells)^{k:.2f}')
+        a3.loglog(xs, gy * (xs / gx), ':', label='linear')
+        a3.set_xlabel('objects x cells')
+        a3.set_ylabel(f'median ms above the fixed cost ({fixed_ms:.2f} ms)')
+        a3.legend(fontsize=8)
+    for a in axes:
         a.grid(alpha=0.3)
     fig.tight_layout()
     Path(png).parent.mkdir(parents=True, exist_ok=True)
@@ -446,7 +468,7 @@ def main(argv=None) -> int:
     if args.rounds > 0:
         bench_targets(args.rounds, scans)
     bench_node()
-    bench_scaling(args.png, 20 if args.quick else 60)
+    bench_scaling(args.png, 20 if args.quick else 60, rows, rows[0][3])
     if args.memory:
         bench_memory(args.memory)
     print(f'\nreference workload: {reference_ms():.2f} ms at the end')

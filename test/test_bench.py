@@ -133,3 +133,23 @@ def test_detections_sweep_prints_its_cases(capsys):
     out = capsys.readouterr().out
     assert 'filter step against the detections' in out
     assert any(line.split()[:2] == ['2', '721'] for line in out.splitlines())
+
+
+def test_scaling_png_has_the_growth_panel(tmp_path, monkeypatch):
+    """With filter-step rows the scaling figure gets a third, log-log panel."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    import extended_tracker.bench as bench
+
+    monkeypatch.setattr(bench, '_median_step', lambda scene, cfg, scans: 1.0)
+    seen = []
+    monkeypatch.setattr(plt.Figure, 'savefig', lambda self, path: seen.append(
+        [a.get_xlabel() for a in self.axes]))
+    rows = [(0, 0.0, 0.0, 0.7), (1, 6.0, 2.0, 1.5), (4, 46.0, 7.0, 2.0), (10, 78.0, 23.0, 2.7)]
+    bench.bench_scaling(str(tmp_path / 'a.png'), 2, rows, 0.7)
+    bench.bench_scaling(str(tmp_path / 'b.png'), 2)
+    assert seen == [['objects (361 beams)', 'beams (10 objects)', 'objects x cells'],
+                    ['objects (361 beams)', 'beams (10 objects)']]
