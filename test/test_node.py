@@ -34,7 +34,7 @@ SPIN_LIMIT_S = 5.0          # per expected message; loopback delivery takes mill
 class Harness:
     """A TrackerNode and a probe node that publishes scans and records the outputs."""
 
-    def __init__(self, args=None, overrides=None):
+    def __init__(self, args=None, overrides=None, markers=True):
         self.ctx = Context()
         rclpy.init(context=self.ctx, args=args)
         kw = {'context': self.ctx}
@@ -44,23 +44,35 @@ class Harness:
         self.probe = rclpy.create_node('probe', context=self.ctx)
         self.tracks, self.markers = [], []
         self.probe.create_subscription(ExtendedObjectArray, 'tracks', self.tracks.append, 50)
-        self.probe.create_subscription(MarkerArray, 'tracks/markers', self.markers.append, 50)
+        if markers:
+            self.watch_markers()
         from rclpy.qos import qos_profile_sensor_data
         self.pub = self.probe.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
         self.ex.add_node(self.probe)
+        self.expect_markers = markers
+        self._discover(lambda: self.pub.get_subscription_count() >= 1)
+        if markers:
+            self._discover(lambda: self.node.pub_markers.get_subscription_count() >= 1)
+
+    def _discover(self, done):
         deadline = time.monotonic() + SPIN_LIMIT_S
-        while self.pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+        while not done() and time.monotonic() < deadline:
             self.ex.spin_once(timeout_sec=0.01)
 
+    def watch_markers(self):
+        """Subscribe the probe to the markers (the node builds them only then)."""
+        self.probe.create_subscription(MarkerArray, 'tracks/markers', self.markers.append, 50)
+
     def send(self, msg, expect_reply=True):
-        n = len(self.tracks)
+        n, n_markers = len(self.tracks), len(self.markers)
         self.pub.publish(msg)
         deadline = time.monotonic() + SPIN_LIMIT_S
         while time.monotonic() < deadline:
             self.ex.spin_once(timeout_sec=0.01)
-            if expect_reply and len(self.tracks) > n and len(self.markers) > n:
+            if (expect_reply and len(self.tracks) > n
+                    and (not self.expect_markers or len(self.markers) > n_markers)):
                 return self.tracks[-1]
             if not expect_reply and self.node.scans >= 0 and time.monotonic() > deadline - 4.5:
                 return None
@@ -134,6 +146,38 @@ def test_markers_outline_label_velocity_and_deletion(harness):
     assert {x.ns for x in deletes} == {'outline', 'label', 'velocity'}
     assert len(harness.tracks[-1].objects) == 0
     assert not [x for x in harness.markers[-1].markers if x.action == 0]
+
+
+def test_markers_are_built_only_while_someone_listens(monkeypatch):
+    """No marker subscriber: tracks still come, no markers are built. Once one subscribes,
+    markers come with every scan, and ids drawn before the gap that are gone now are
+    deleted."""
+    import extended_tracker.ros.node as node_mod
+
+    built = []
+    real = node_mod.markers_data
+    monkeypatch.setattr(node_mod, 'markers_data',
+                        lambda *a, **k: built.append(1) or real(*a, **k))
+    h = Harness(overrides=[Parameter('background.enabled', value=False)], markers=False)
+    try:
+        data = simulate(tutorial_scene(), 4.0, seed=1)
+        for scan, _ in data[:20]:
+            assert h.send(ros_scan(scan)) is not None
+        assert len(h.tracks) == 20 and not built and not h.markers
+        h.node.marker_ids = {999}                        # an id drawn before the gap
+        h.watch_markers()
+        h.expect_markers = True
+        h._discover(lambda: h.node.pub_markers.get_subscription_count() >= 1)
+        for scan, _ in data[20:25]:
+            h.send(ros_scan(scan))
+        assert len(built) == 5 and len(h.markers) == 5
+        first = h.markers[0].markers
+        assert {(x.ns, x.id) for x in first if x.action == 2} == {
+            ('outline', 999), ('label', 999), ('velocity', 999)}
+        assert sum(1 for x in first if x.ns == 'outline' and x.action == 0) == len(
+            h.tracks[20].objects)
+    finally:
+        h.close()
 
 
 def test_robustness_every_case_counted_never_a_crash(harness):
@@ -294,3 +338,20 @@ def test_process_refuses_an_invalid_parameter_with_the_reason():
                           capture_output=True, text=True, timeout=30, env=dict(os.environ))
     assert done.returncode == 2
     assert "model.mode must be one of ('cphd', 'phd'), got 'kalman'" in done.stderr
+
+
+def test_node_overhead_bench_with_and_without_a_marker_listener(monkeypatch):
+    """The bench's node figure: with a listener the callback builds markers, without it
+    not; both report a callback time over the step's."""
+    import extended_tracker.ros.node as node_mod
+    from extended_tracker.ros.bench_node import node_overhead
+
+    built = []
+    real = node_mod.markers_data
+    monkeypatch.setattr(node_mod, 'markers_data',
+                        lambda *a, **k: built.append(1) or real(*a, **k))
+    for listener in (True, False):
+        built.clear()
+        r = node_overhead(scans=25, marker_listener=listener)
+        assert r['callback_median_ms'] > r['step_median_ms'] > 0
+        assert len(built) == (25 if listener else 0)

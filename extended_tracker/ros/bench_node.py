@@ -8,8 +8,12 @@ import time
 import numpy as np
 
 
-def node_overhead(scans: int = 200) -> dict:
-    """Feed simulated scans straight into ``TrackerNode.on_scan``; time both."""
+def node_overhead(scans: int = 200, marker_listener: bool = False) -> dict:
+    """
+    Feed simulated scans straight into ``TrackerNode.on_scan``; time both. With
+    ``marker_listener`` a second node subscribes to the markers first (as RViz would), so
+    the node builds and publishes them.
+    """
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     os.environ.pop('ROS_LOCALHOST_ONLY', None)
     import rclpy
@@ -29,6 +33,16 @@ def node_overhead(scans: int = 200) -> dict:
     try:
         node = TrackerNode(context=ctx,
                            parameter_overrides=[Parameter('background.enabled', value=False)])
+        listener = None
+        if marker_listener:
+            from visualization_msgs.msg import MarkerArray
+
+            listener = rclpy.create_node('marker_listener', context=ctx)
+            listener.create_subscription(MarkerArray, 'tracks/markers', lambda m: None, 10)
+            deadline = time.monotonic() + 5.0
+            while (node.pub_markers.get_subscription_count() < 1
+                   and time.monotonic() < deadline):
+                time.sleep(0.01)
         total, inner = [], []
         import extended_tracker.ros.node as node_mod
 
@@ -49,6 +63,8 @@ def node_overhead(scans: int = 200) -> dict:
         finally:
             node_mod.step = real_step
         node.destroy_node()
+        if listener is not None:
+            listener.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
     total, inner = np.array(total[20:]) * 1e3, np.array(inner[20:]) * 1e3

@@ -3,8 +3,9 @@ The live node: ``ros2 run extended_tracker tracker_node``.
 
 Subscribes to ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, remappable) and, for
 every scan, publishes ``tracks`` (extended_tracker_msgs/ExtendedObjectArray),
-``tracks/markers`` (visualization_msgs/MarkerArray) and ``tracks/diagnostics``
-(diagnostic_msgs/DiagnosticArray), all stamped with the scan's stamp and frame. A thin
+``tracks/markers`` (visualization_msgs/MarkerArray; only while it has a subscriber) and
+``tracks/diagnostics`` (diagnostic_msgs/DiagnosticArray), all stamped with the scan's
+stamp and frame. A thin
 shell around :func:`extended_tracker.pipeline.step`, the same function the bag replay
 calls.
 """
@@ -121,11 +122,13 @@ class TrackerNode(Node):
         self.scans += 1
         if result.event:
             self._count(result.event, result.error or result.event.replace('_', ' '))
-        tracks = fill(ExtendedObjectArray(), tracks_data(result, self.cfg))
-        mdata, self.marker_ids = markers_data(result, self.cfg, self.marker_ids)
-        markers = fill(MarkerArray(), mdata)
-        self.pub_tracks.publish(tracks)
-        self.pub_markers.publish(markers)
+        self.pub_tracks.publish(fill(ExtendedObjectArray(), tracks_data(result, self.cfg)))
+        # markers only while something listens (RViz, a recorder): building and publishing
+        # them costs about half as much again as the tracking step. The ids last drawn
+        # stay remembered, so a listener that returns gets the deletions it needs.
+        if self.pub_markers.get_subscription_count() > 0:
+            mdata, self.marker_ids = markers_data(result, self.cfg, self.marker_ids)
+            self.pub_markers.publish(fill(MarkerArray(), mdata))
         self.pub_diag.publish(self._diagnostics(result))
 
     def _count(self, kind: str, text: str, error: bool = False) -> None:
