@@ -214,17 +214,18 @@ def esf_terms(log_a: np.ndarray, log_b: np.ndarray | None, min_work: int = LINEA
     path, and so does a small batch, where the scaling's set-up costs more than it saves.
     """
     p, k = log_a.shape
-    if p * k * k < min_work or k > LINEAR_MAX_R:
+    scaled = p * k * k >= min_work and k <= LINEAR_MAX_R
+    if scaled:
+        # each row scaled by its largest value (0 for a row of padding only)
+        mx = log_a.max(axis=1, initial=NEG_INF)
+        mx = np.where(np.isfinite(mx), mx, 0.0)
+        shifted = log_a - mx[:, None]                 # padding stays -inf
+        log_prod = np.where(np.isfinite(shifted), shifted, 0.0).sum(axis=1)
+        scaled = log_prod.min(initial=0.0) >= LINEAR_FLOOR
+    if not scaled:
         pre = log_esf_prefixes(log_a)
         return pre[k], None if log_b is None else leave_one_out_sums(pre, log_a, log_b)
-    finite = np.isfinite(log_a)
-    mx = np.where(finite, log_a, NEG_INF).max(axis=1, initial=NEG_INF)
-    mx = np.where(np.isfinite(mx), mx, 0.0)
-    shifted = np.where(finite, log_a - mx[:, None], 0.0)
-    if shifted.sum(axis=1).min() < LINEAR_FLOOR:
-        pre = log_esf_prefixes(log_a)
-        return pre[k], None if log_b is None else leave_one_out_sums(pre, log_a, log_b)
-    b = np.exp(np.where(finite, shifted, NEG_INF))           # padding -> 0
+    b = np.exp(shifted)                               # padding -> 0
     E = np.zeros((k + 1, p, k + 1))
     E[:, :, 0] = 1.0
     for t in range(k):
