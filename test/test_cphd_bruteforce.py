@@ -235,30 +235,46 @@ def test_log_domain_survives_extreme_scales():
     assert np.all(np.isfinite(out.log_w_missed))
 
 
-def test_leave_one_out_sums_against_direct_products():
-    """Batched prefix ESFs and leave-one-out sums, rows padded with -inf, by enumeration."""
+def _padded(rows, k):
+    """Rows of values as log-rows of width ``k``, padded with -inf."""
+    log_a = np.full((len(rows), k), -np.inf)
+    for i, a in enumerate(rows):
+        log_a[i, :len(a)] = np.log(a)
+    return log_a
+
+
+def _enumerated(a, log_b):
+    """By enumeration: ``e_r(a)`` for r = 0..len(a), and for each j
+    ``sum_r e_r(a without a_j) b_r``."""
     from itertools import combinations
 
+    def esf(v):
+        return [sum(np.prod(c) for c in combinations(v, r)) for r in range(len(v) + 1)]
+
+    loo = []
+    for j in range(len(a)):
+        e = esf(np.delete(a, j))
+        loo.append(sum(np.exp(log_b[r]) * e[r] for r in range(len(e))))
+    return esf(a), loo
+
+
+def test_leave_one_out_sums_against_direct_products():
+    """Batched prefix ESFs and leave-one-out sums, rows padded with -inf, by enumeration."""
     from extended_tracker.cphd import leave_one_out_sums, log_esf_prefixes
 
     rng = np.random.default_rng(3)
     k = 6
     rows = [rng.uniform(0.05, 5.0, k), rng.uniform(0.05, 5.0, 3), np.exp([-400.0, 300.0])]
-    log_a = np.full((len(rows), k), -np.inf)
-    for i, a in enumerate(rows):
-        log_a[i, :len(a)] = np.log(a)
+    log_a = _padded(rows, k)
     log_b = np.log(rng.uniform(0.1, 3.0, (len(rows), k)))
     pre = log_esf_prefixes(log_a)
     out = leave_one_out_sums(pre, log_a, log_b)
     for i, a in enumerate(rows):
-        e_full = [sum(np.prod(cmb) for cmb in combinations(a, r)) for r in range(len(a) + 1)]
+        e_full, loo = _enumerated(a, log_b[i])
         # rtol: sums of at most 20 positive products in double precision
         np.testing.assert_allclose(np.exp(pre[len(a), i, :len(a) + 1]), e_full, rtol=1e-12)
         assert np.all(pre[len(a), i, len(a) + 1:] == -np.inf)
-        for j in range(len(a)):
-            rest = np.delete(a, j)
-            ref = sum(np.exp(log_b[i, r]) * sum(np.prod(cmb) for cmb in combinations(rest, r))
-                      for r in range(len(rest) + 1))
+        for j, ref in enumerate(loo):
             if i == 2:                                 # 1e-174 and 1e130: compare logs
                 assert out[i, j] == pytest.approx(np.log(ref), rel=1e-12)
             else:
@@ -276,38 +292,28 @@ def _log_domain_terms(log_a, log_b):
     return pre[log_a.shape[1]], leave_one_out_sums(pre, log_a, log_b)
 
 
-def test_scaled_esf_terms_against_enumeration():
+def test_scaled_esf_terms_against_enumeration(monkeypatch):
     """The linear-domain path: e_r and leave-one-out sums of padded rows by enumeration,
     with values spread over 80 orders of magnitude (inside the path's floor)."""
-    from itertools import combinations
-
     from extended_tracker import cphd
 
     rng = np.random.default_rng(8)
     k = 6
     rows = [rng.uniform(0.05, 5.0, k), rng.uniform(0.05, 5.0, 3),
             np.exp([-90.0, 95.0, 3.0]), np.zeros(0)]
-    log_a = np.full((len(rows), k), -np.inf)
-    for i, a in enumerate(rows):
-        log_a[i, :len(a)] = np.log(a)
+    log_a = _padded(rows, k)
     log_b = np.log(rng.uniform(0.1, 3.0, (len(rows), k))) + 40.0 * np.arange(k)
     spy = []
     real = cphd.log_esf_prefixes
-    cphd.log_esf_prefixes = lambda x: spy.append(1) or real(x)
-    try:
-        log_e, loo = cphd.esf_terms(log_a, log_b, min_work=0)
-    finally:
-        cphd.log_esf_prefixes = real
+    monkeypatch.setattr(cphd, 'log_esf_prefixes', lambda x: spy.append(1) or real(x))
+    log_e, loo = cphd.esf_terms(log_a, log_b, min_work=0)
     assert not spy                                      # the scaled path was taken
     for i, a in enumerate(rows):
-        e_full = [sum(np.prod(c) for c in combinations(a, r)) for r in range(len(a) + 1)]
+        e_full, loo_ref = _enumerated(a, log_b[i])
         np.testing.assert_allclose(log_e[i, :len(a) + 1], np.log(e_full), rtol=1e-13,
                                    atol=1e-13)
         assert np.all(log_e[i, len(a) + 1:] == -np.inf)
-        for j in range(len(a)):
-            rest = np.delete(a, j)
-            ref = sum(np.exp(log_b[i, r]) * sum(np.prod(c) for c in combinations(rest, r))
-                      for r in range(len(rest) + 1))
+        for j, ref in enumerate(loo_ref):
             assert loo[i, j] == pytest.approx(np.log(ref), rel=1e-13)
 
 
