@@ -170,6 +170,16 @@ def growth_exponent(x, y) -> float:
     return float(np.dot(x, y - y.mean()) / np.dot(x, x))
 
 
+def _growth_cases(rows, fixed_ms: float):
+    """Objects x cells, detections and the time above ``fixed_ms`` of the ``rows``
+    (``(objects, detections, cells, median ms)``) with objects and a time above it, as
+    arrays; None when fewer than two are left to fit."""
+    used = [(n * c, d, t - fixed_ms) for n, d, c, t in rows if n > 0 and t > fixed_ms]
+    if len(used) < 2:
+        return None
+    return tuple(np.array(a, dtype=float) for a in zip(*used))
+
+
 def report_growth(rows, fixed_ms: float) -> tuple[float, float]:
     """
     How the filter step's cost grows: the exponent of its time above the fixed cost
@@ -177,16 +187,16 @@ def report_growth(rows, fixed_ms: float) -> tuple[float, float]:
     against detections, over ``rows`` of ``(objects, detections, cells, median ms)``
     (those with objects and a time above the fixed cost). Printed and returned.
     """
-    used = [(n, d, c, t - fixed_ms) for n, d, c, t in rows if n > 0 and t > fixed_ms]
-    if len(used) < 2:
+    cases = _growth_cases(rows, fixed_ms)
+    if cases is None:
         print('growth: too few cases above the fixed cost to fit')
         return float('nan'), float('nan')
-    n, d, c, extra = (np.array(a) for a in zip(*used))
-    k_oc = growth_exponent(n * c, extra)
+    oc, d, extra = cases
+    k_oc = growth_exponent(oc, extra)
     k_d = growth_exponent(d, extra)
-    print(f'growth of the filter step above its fixed cost ({fixed_ms:.2f} ms), {len(used)} '
+    print(f'growth of the filter step above its fixed cost ({fixed_ms:.2f} ms), {len(oc)} '
           f'cases: time ~ (objects x cells)^{k_oc:.2f} '
-          f'(objects x cells {int((n * c).min())}-{int((n * c).max())}), '
+          f'(objects x cells {int(oc.min())}-{int(oc.max())}), '
           f'~ detections^{k_d:.2f} ({int(d.min())}-{int(d.max())}); 1 is linear')
     return k_oc, k_d
 
@@ -385,18 +395,17 @@ def bench_scaling(png: str, scans: int = 40, growth_rows=None, fixed_ms: float =
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    used = [(n * c, t - fixed_ms) for n, _, c, t in (growth_rows or [])
-            if n > 0 and t > fixed_ms]
-    fig, axes = plt.subplots(1, 3 if len(used) >= 2 else 2,
-                             figsize=(15 if len(used) >= 2 else 10, 4), dpi=110)
+    cases = _growth_cases(growth_rows or [], fixed_ms)
+    fig, axes = plt.subplots(1, 2 if cases is None else 3,
+                             figsize=(10 if cases is None else 15, 4), dpi=110)
     a1, a2 = axes[0], axes[1]
     a1.plot(*zip(*rows_o), 'o-')
     a1.set_xlabel('objects (361 beams)')
     a1.set_ylabel('median ms per scan (pipeline.step)')
     a2.plot(*zip(*rows_b), 'o-')
     a2.set_xlabel('beams (10 objects)')
-    if len(used) >= 2:
-        x, y = (np.array(a, dtype=float) for a in zip(*used))
+    if cases is not None:
+        x, _, y = cases
         k = growth_exponent(x, y)
         xs = np.geomspace(x.min(), x.max(), 50)
         # the fit's line and a linear slope, both through the cases' geometric mean
