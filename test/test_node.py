@@ -44,17 +44,15 @@ class Harness:
         self.probe = rclpy.create_node('probe', context=self.ctx)
         self.tracks, self.markers = [], []
         self.probe.create_subscription(ExtendedObjectArray, 'tracks', self.tracks.append, 50)
-        if markers:
-            self.watch_markers()
         from rclpy.qos import qos_profile_sensor_data
         self.pub = self.probe.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
         self.ex = SingleThreadedExecutor(context=self.ctx)
         self.ex.add_node(self.node)
         self.ex.add_node(self.probe)
-        self.expect_markers = markers
+        self.expect_markers = False
         self._discover(lambda: self.pub.get_subscription_count() >= 1)
         if markers:
-            self._discover(lambda: self.node.pub_markers.get_subscription_count() >= 1)
+            self.watch_markers()
 
     def _discover(self, done):
         deadline = time.monotonic() + SPIN_LIMIT_S
@@ -62,8 +60,11 @@ class Harness:
             self.ex.spin_once(timeout_sec=0.01)
 
     def watch_markers(self):
-        """Subscribe the probe to the markers (the node builds them only then)."""
+        """Subscribe the probe to the markers (the node builds them only then), wait until
+        the node sees the subscription, and expect markers with every reply from now on."""
         self.probe.create_subscription(MarkerArray, 'tracks/markers', self.markers.append, 50)
+        self._discover(lambda: self.node.pub_markers.get_subscription_count() >= 1)
+        self.expect_markers = True
 
     def send(self, msg, expect_reply=True):
         n, n_markers = len(self.tracks), len(self.markers)
@@ -148,16 +149,23 @@ def test_markers_outline_label_velocity_and_deletion(harness):
     assert not [x for x in harness.markers[-1].markers if x.action == 0]
 
 
-def test_markers_are_built_only_while_someone_listens(monkeypatch):
-    """No marker subscriber: tracks still come, no markers are built. Once one subscribes,
-    markers come with every scan, and ids drawn before the gap that are gone now are
-    deleted."""
+@pytest.fixture
+def marker_builds(monkeypatch):
+    """A list that grows by one each time the node builds a MarkerArray."""
     import extended_tracker.ros.node as node_mod
 
     built = []
     real = node_mod.markers_data
     monkeypatch.setattr(node_mod, 'markers_data',
                         lambda *a, **k: built.append(1) or real(*a, **k))
+    return built
+
+
+def test_markers_are_built_only_while_someone_listens(marker_builds):
+    """No marker subscriber: tracks still come, no markers are built. Once one subscribes,
+    markers come with every scan, and ids drawn before the gap that are gone now are
+    deleted."""
+    built = marker_builds
     h = Harness(overrides=[Parameter('background.enabled', value=False)], markers=False)
     try:
         data = simulate(tutorial_scene(), 4.0, seed=1)
@@ -166,8 +174,6 @@ def test_markers_are_built_only_while_someone_listens(monkeypatch):
         assert len(h.tracks) == 20 and not built and not h.markers
         h.node.marker_ids = {999}                        # an id drawn before the gap
         h.watch_markers()
-        h.expect_markers = True
-        h._discover(lambda: h.node.pub_markers.get_subscription_count() >= 1)
         for scan, _ in data[20:25]:
             h.send(ros_scan(scan))
         assert len(built) == 5 and len(h.markers) == 5
@@ -340,18 +346,13 @@ def test_process_refuses_an_invalid_parameter_with_the_reason():
     assert "model.mode must be one of ('cphd', 'phd'), got 'kalman'" in done.stderr
 
 
-def test_node_overhead_bench_with_and_without_a_marker_listener(monkeypatch):
+def test_node_overhead_bench_with_and_without_a_marker_listener(marker_builds):
     """The bench's node figure: with a listener the callback builds markers, without it
     not; both report a callback time over the step's."""
-    import extended_tracker.ros.node as node_mod
     from extended_tracker.ros.bench_node import node_overhead
 
-    built = []
-    real = node_mod.markers_data
-    monkeypatch.setattr(node_mod, 'markers_data',
-                        lambda *a, **k: built.append(1) or real(*a, **k))
     for listener in (True, False):
-        built.clear()
+        marker_builds.clear()
         r = node_overhead(scans=25, marker_listener=listener)
         assert r['callback_median_ms'] > r['step_median_ms'] > 0
-        assert len(built) == (25 if listener else 0)
+        assert len(marker_builds) == (25 if listener else 0)
