@@ -191,14 +191,16 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates
         bgc = cfg.background
-        confirmed = np.isin(est.label, filt.confirmed_labels(
-            cfg.extraction.confirm_scans, bgc.moved_distance))
+        confirmed = np.isin(est.label, filt.confirmed_labels(cfg.extraction.confirm_scans))
+        moved = np.isin(est.label, filt.confirmed_labels(cfg.extraction.confirm_scans,
+                                                         bgc.moved_distance))
         major = est.axes()[0] if len(est) else np.zeros(0)
-        confirmed &= major <= bgc.protect_semi_axis
-        centres = est.m[confirmed, :2]
-        radius = major[confirmed]
-        prot = protected_beams(sp, centres, radius, cfg.background.track_gate)
-        background, keep = update_background(background, sp, dt, cfg.background, prot)
+        small = major <= bgc.protect_semi_axis
+        prot = protected_beams(sp, est.m[confirmed & small, :2], major[confirmed & small],
+                               bgc.track_gate)
+        prot_free = protected_beams(sp, est.m[moved & small, :2], major[moved & small],
+                                    bgc.track_gate)
+        background, keep = update_background(background, sp, dt, bgc, prot, prot_free)
         bg_points = points[~keep]
         points = points[keep]
         diag['background_dropped'] = len(keep) - int(np.count_nonzero(keep))

@@ -114,7 +114,8 @@ class FilterState:
         Labels extracted in the last scan (reported once ``extraction.confirm_scans`` in a
         row); ``reported_scans`` counts consecutive scans,
         ``reported_origin`` (r, 2) is where each was first reported and
-        ``reported_travel`` (r,) the farthest it has been from there (m).
+        ``reported_travel`` (r,) the farthest it has been from there in a scan where returns
+        updated it (m; coasting drift does not count).
     shown : (s,) int64 array
         Labels ever reported (shown to the user) that are still in the mixture or were
         shown less than ``extraction.handover_time`` ago, ascending; ``shown_pos`` (s, 2)
@@ -136,7 +137,6 @@ class FilterState:
     reported_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     reported_origin: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     reported_travel: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    reported_age: np.ndarray = field(default_factory=lambda: np.zeros(0))
     shown: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shown_pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     shown_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
@@ -151,15 +151,9 @@ class FilterState:
         log_card[0] = 0.0
         return FilterState(Mixture.empty(), log_card)
 
-    def confirmed_labels(self, scans: int, min_travel: float = 0.0,
-                         max_unmoved_age: float = np.inf) -> np.ndarray:
-        """
-        Labels reported ``scans`` scans in a row that have moved ``min_travel`` m, or that
-        have not moved but were first reported less than ``max_unmoved_age`` s ago.
-        """
-        moved = self.reported_travel >= min_travel
-        young = self.reported_age < max_unmoved_age
-        ok = (self.reported_scans >= scans) & (moved | young)
+    def confirmed_labels(self, scans: int, min_travel: float = 0.0) -> np.ndarray:
+        """Labels reported ``scans`` scans in a row that have moved ``min_travel`` m."""
+        ok = (self.reported_scans >= scans) & (self.reported_travel >= min_travel)
         return self.reported[ok]
 
 
@@ -741,21 +735,21 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
     k = len(est)
     scans = np.ones(k, dtype=np.int64)
     origin = est.m[:, :2].copy()
-    age = np.zeros(k)
     for j, lab in enumerate(est.label.tolist()):
         i = index.get(lab)
         if i is not None:
             scans[j] = old.reported_scans[i] + 1
             origin[j] = old.reported_origin[i]
-            age[j] = old.reported_age[i] + new.dt
     d = est.m[:, :2] - origin
     travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
+    # only where returns placed it: a coasting label drifts with its predicted velocity
+    travel[est.num_detections <= 0] = 0.0
     for j, lab in enumerate(est.label.tolist()):
         i = index.get(lab)
         if i is not None:
             travel[j] = max(travel[j], old.reported_travel[i])
     return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
-                  reported_travel=travel, reported_age=age)
+                  reported_travel=travel)
 
 
 def _pad(a, n: int, fill: float):

@@ -7,6 +7,9 @@ from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.background import update_background
 from extended_tracker.sensing.scan import scan_to_points
 from extended_tracker.sim.laser import LaserSpec, Scene, simulate, SimObject, walls_scene
+from extended_tracker.tracker import _record_reports, FilterState
+
+from mixtures import estimates
 
 
 def run(scene, duration, cfg, seed=0):
@@ -70,3 +73,78 @@ def test_background_learning_unit():
     for _ in range(12):                               # 1.2 s > confirm_time
         state, keep = update_background(state, sp, 0.1, cfg, np.zeros(len(sp.angles), bool))
     assert not keep.any()                             # the wall is background now
+
+
+def _empty_then(ranges_per_scan, cfg, protected, protected_free):
+    """Feed one beam's ranges (inf: no return) and return the last state and keep-mask."""
+    (scan, _), = simulate(Scene((), laser=LaserSpec(n_beams=3)), 0.1, seed=0)
+    state = keep = None
+    for r in ranges_per_scan:
+        scan.ranges = np.full(3, r, dtype=np.float32)
+        sp = scan_to_points(scan)
+        state, keep = update_background(state, sp, 0.1, cfg, protected, protected_free)
+    return state, keep
+
+
+def test_beam_seen_empty_is_free_and_protection_there_needs_a_moved_track():
+    cfg = from_dict({}).background                      # confirm_time 1 s
+    yes, no = np.ones(3, bool), np.zeros(3, bool)
+    # 1.2 s with nothing in range, then something stands there for 3 s
+    ranges = [np.inf] * 12 + [4.0] * 30
+    state, keep = _empty_then(ranges, cfg, protected=yes, protected_free=yes)
+    assert state.free.all() and np.isnan(state.background).all()
+    assert keep.all()                                   # a moved track there: never learned
+    # the same, near a confirmed track that has not moved: learned after confirm_time
+    state, keep = _empty_then(ranges, cfg, protected=yes, protected_free=no)
+    assert not keep.any() and np.allclose(state.background, 4.0)
+    # never seen empty (0.5 s of nothing is not enough): tracks protect nothing there
+    state, keep = _empty_then([np.inf] * 5 + [4.0] * 30, cfg, yes, yes)
+    assert not state.free.any() and not keep.any()
+    # a beam with a known background never becomes free, however long it returns nothing
+    state, _ = _empty_then([4.0] * 12 + [np.inf] * 30, cfg, no, no)
+    assert not state.free.any() and np.allclose(state.background, 4.0)
+
+
+def test_person_who_stops_in_open_space_keeps_one_id():
+    """Nothing within range behind the person: the beams are free, the person is kept."""
+    person = SimObject((12.0, 2.0), (-1.0, -0.2), t_start=2.0, stops=((6.0, 12.0),))
+    hist = run(Scene((person,), laser=LaserSpec()), 16.0, from_dict({}), seed=3)
+    labels = []
+    for k, (truth, res) in enumerate(hist):
+        if k < 30 or not truth:
+            continue
+        (p,) = truth
+        est = res.estimates
+        assert len(est) == 1, (k, est.m[:, :2])
+        assert np.linalg.norm(est.m[0, :2] - p.centre) < 0.3, k
+        labels.append(int(est.label[0]))
+    assert len(labels) > 100 and len(set(labels)) == 1
+    # standing from 6 s to 12 s: all of its returns reached the filter
+    assert all(res.diagnostics['background_dropped'] == 0 for _, res in hist[60:120])
+
+
+def test_object_that_appears_and_never_moves_in_open_space_is_learned():
+    """The contrast: a track that never moved protects nothing on free beams."""
+    box = SimObject((5.0, 1.0), a=0.3, b=0.3, t_start=3.0, kind='box')
+    hist = run(Scene((box,), laser=LaserSpec()), 10.0, from_dict({}), seed=4)
+    assert all(len(res.estimates) == 0 for _, res in hist[60:]), \
+        [len(res.estimates) for _, res in hist[30:]]
+    assert all(res.diagnostics['background_dropped'] > 0 for _, res in hist[60:])
+
+
+def test_travel_that_protects_counts_only_scans_with_returns():
+    """A label coasting on its predicted velocity has not moved: its drift is not travel."""
+    def report(state, x, detections):
+        est = estimates([7], [[x, 0.0]])
+        est.num_detections[:] = detections
+        return _record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
+
+    state = FilterState.initial(from_dict({}))
+    state = report(state, 0.0, 5)
+    for k in range(1, 11):                               # drifts 1 m with no returns
+        state = report(state, 0.1 * k, 0)
+    assert state.reported_travel[0] == 0.0 and state.reported_scans[0] == 11
+    assert len(state.confirmed_labels(3, 0.5)) == 0
+    state = report(state, 1.2, 3)                        # seen again 1.2 m away
+    assert np.isclose(state.reported_travel[0], 1.2)
+    assert state.confirmed_labels(3, 0.5).tolist() == [7]

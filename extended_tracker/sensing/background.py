@@ -15,11 +15,16 @@ the same range:
 - a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
   it only after ``forget_time``, so people pausing briefly are not learned.
 
-Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
-person-sized, and moved at least ``moved_distance``: the caller decides) and in front of a
-known background are never dropped and never learned from, so a person who walks in and
-stops stays tracked however long they stand. Where the background is still unknown,
-tracks protect nothing, so a wall tracked at start-up is still learned.
+Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed and
+person-sized: the caller decides) and in front of a known background are never dropped and
+never learned from, so a person who walks in and stops stays tracked however long they
+stand. A beam that has returned nothing for ``confirm_time`` while its background was
+unknown is *free* (open space, or nothing within range). A free beam is protected only by
+a track that has also moved ``moved_distance`` while seen (``protected_free``): a person
+who stops in open space stays tracked, while something that flickers at the edge of range
+and gets tracked where it stands is still learned. Where the background is unknown and the
+beam was never seen free (a stretch of wall hidden behind a person since start-up), tracks
+protect nothing, so a revealed wall that gets tracked is still learned.
 
 Limitation: a per-beam model cannot tell a person who stands still from start-up from a
 piece of furniture; such a person becomes background after ``confirm_time``. Disable the
@@ -45,12 +50,14 @@ class BackgroundState:
     background: np.ndarray
     candidate: np.ndarray
     candidate_age: np.ndarray
+    empty_age: np.ndarray             # time a beam of unknown background returned nothing
+    free: np.ndarray                  # seen empty for confirm_time (bool)
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
         b = len(scan.angles)
         return BackgroundState(scan.angles.copy(), np.full(b, np.nan), np.full(b, np.nan),
-                               np.zeros(b))
+                               np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool))
 
     def matches(self, scan: ScanPoints) -> bool:
         return (len(self.angles) == len(scan.angles)
@@ -70,7 +77,8 @@ def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: n
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
-                      protected: np.ndarray) -> tuple[BackgroundState, np.ndarray]:
+                      protected: np.ndarray, protected_free: np.ndarray | None = None
+                      ) -> tuple[BackgroundState, np.ndarray]:
     """
     Learn from one scan and return the new state and a keep-mask over ``scan.points``.
 
@@ -82,7 +90,11 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         Time since the previous scan (s), ``>= 0``.
     cfg : BackgroundConfig
     protected : (B,) bool array
-        Beams near confirmed tracks: kept and not learned from.
+        Beams near confirmed tracks: kept and not learned from where the background is
+        known.
+    protected_free : (B,) bool array, optional
+        Beams near confirmed tracks that moved: kept and not learned from where the beam
+        was seen free (default: ``protected``).
 
     """
     if state is None or not state.matches(scan):
@@ -101,8 +113,14 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # candidates: a beam returning the same range as before keeps ageing; a beam with
         # no return (dropout, or nothing in range) tells nothing and changes nothing
         seen = np.isfinite(r)
+        # free: a beam of unknown background that returned nothing for confirm_time in a
+        # row; a later return does not undo it (a person standing there)
+        empty = np.where(seen | known, 0.0, state.empty_age + dt)
+        free = state.free | (empty >= cfg.confirm_time - 1e-6)
         same = seen & np.isfinite(c) & (np.abs(r - c) <= margin)
-        learn = seen & ~is_bg & ~(protected & known)
+        if protected_free is None:
+            protected_free = protected
+        learn = seen & ~is_bg & ~(protected & known) & ~(protected_free & free & ~known)
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
         age = np.where(learn, np.where(same, age + dt, 0.0), age)
         c = np.where(learn, np.where(same, c + gain * (r - c), r), c)
@@ -113,4 +131,4 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         b = np.where(promote, c, b)
         age = np.where(promote, 0.0, age)
     keep = ~is_bg[scan.beam]
-    return BackgroundState(state.angles, b, c, age), keep
+    return BackgroundState(state.angles, b, c, age, empty, free), keep
