@@ -128,6 +128,16 @@ def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
     return evolve(FilterState.initial(cfg), next_label=filt.next_label)
 
 
+def reset(state: PipelineState, cfg: TrackerConfig) -> PipelineState:
+    """
+    Start over as at start-up, with labels continuing after the old ones (ids are never
+    reused): no tracks, no learned background (the warm-up runs again), no frame lock.
+    For a scanner that was moved, or a new session in the same run. A changed
+    ``model.n_max`` takes effect here (a running filter keeps its cardinality length).
+    """
+    return PipelineState(_reset(state.filter, cfg), last_stamp_ns=state.last_stamp_ns)
+
+
 def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState, StepResult]:
     """
     Carry one LaserScan-like message through the whole chain.
@@ -241,4 +251,4 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     return new_state, result
 
 
-__all__ = ['PipelineState', 'StepResult', 'step', 'EVENTS', 'ScanPoints']
+__all__ = ['PipelineState', 'StepResult', 'step', 'reset', 'EVENTS', 'ScanPoints']

@@ -186,6 +186,33 @@ def test_markers_are_built_only_while_someone_listens(marker_builds):
         h.close()
 
 
+def test_reset_service_drops_the_tracks_and_their_markers(harness):
+    from std_srvs.srv import Trigger
+
+    data = simulate(tutorial_scene(), 4.0, seed=1)
+    for scan, _ in data[:20]:
+        harness.send(ros_scan(scan))
+    before = {o.id for o in harness.tracks[-1].objects}
+    assert before
+    client = harness.probe.create_client(Trigger, '/extended_tracker/reset')
+    harness._discover(client.service_is_ready)
+    future = client.call_async(Trigger.Request())
+    harness._discover(future.done)
+    assert future.done() and future.result().success
+    first_new = harness.node.state.filter.next_label
+    assert first_new > max(before)
+    assert future.result().message.endswith(f'new ids start at {first_new}')
+    out = harness.send(ros_scan(data[20][0]))
+    assert len(out.objects) == 0                          # tracks gone at once
+    deleted = {x.id for x in harness.markers[-1].markers if x.action == 2 and x.ns == 'outline'}
+    assert deleted == before                              # and their outlines deleted
+    for scan, _ in data[21:]:
+        out = harness.send(ros_scan(scan))
+    ids = {o.id for o in out.objects}
+    assert ids and min(ids) >= first_new                  # the objects again, new ids
+    client.destroy()
+
+
 def test_robustness_every_case_counted_never_a_crash(harness):
     data = simulate(tutorial_scene(), 2.0, seed=0)
     scans = [ros_scan(s) for s, _ in data]

@@ -23,6 +23,7 @@ NO_ROSDEP_KEY = {'rosbags'}
 ROS_MODULES = {
     'rclpy', 'sensor_msgs', 'visualization_msgs', 'geometry_msgs', 'std_msgs',
     'builtin_interfaces', 'rcl_interfaces', 'extended_tracker_msgs', 'ament_index_python',
+    'std_srvs', 'diagnostic_msgs',
 }
 # The core: numpy/scipy only. Bag I/O may add rosbags; only extended_tracker.ros may add ROS.
 CORE_ALLOWED = {'numpy', 'scipy'}

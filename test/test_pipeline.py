@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.pipeline import PipelineState, step
+from extended_tracker.pipeline import PipelineState, reset, step
 from extended_tracker.sensing.scan import Header, ScanData, Stamp
 from extended_tracker.sim.laser import simulate, tutorial_scene
 
@@ -117,6 +117,34 @@ def test_foreign_frame_is_answered_with_the_tracked_frame():
     new_state, res = step(state, other, CFG)
     assert res.event == 'foreign_frame' and res.frame_id == 'laser'
     assert res.estimates.label.tolist() == state.last_estimates.label.tolist()
+
+
+def test_reset_drops_tracks_background_and_frame_and_ids_continue():
+    cfg = from_dict({'background': {'enabled': True}})
+    data = scans(70)
+    state = PipelineState.initial(cfg)
+    for s in data[:30]:
+        state, res = step(state, s, cfg)
+    assert len(res.estimates) >= 1 and state.background is not None
+    old_max = int(res.estimates.label.max())
+    fresh = reset(state, cfg)
+    assert len(fresh.filter.mixture) == 0 and fresh.background is None
+    assert fresh.frame_id is None and fresh.filter.next_label == state.filter.next_label
+    # a scan in another frame is now the tracked frame; the warm-up runs again
+    other = copy.deepcopy(data[30])
+    other.header.frame_id = 'rear_laser'
+    fresh, res = step(fresh, other, cfg)
+    assert res.event is None and res.frame_id == 'rear_laser'
+    assert res.diagnostics['warmup'] == 1 and len(res.estimates) == 0
+    # a changed n_max applies at the reset
+    assert len(reset(fresh, from_dict({'model': {'n_max': 12}})).filter.log_card) == 13
+    # after the warm-up, what is tracked again has new ids
+    for s in data[31:]:
+        s = copy.deepcopy(s)
+        s.header.frame_id = 'rear_laser'
+        fresh, res = step(fresh, s, cfg)
+    assert res.diagnostics['warmup'] == 0 and len(res.estimates) >= 1
+    assert res.estimates.label.min() > old_max
 
 
 def test_mixed_bad_beams_do_not_disturb_the_rest():

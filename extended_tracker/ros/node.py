@@ -5,7 +5,8 @@ Subscribes to ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, remappable) and,
 every scan, publishes ``tracks`` (extended_tracker_msgs/ExtendedObjectArray),
 ``tracks/markers`` (visualization_msgs/MarkerArray; only while it has a subscriber) and
 ``tracks/diagnostics`` (diagnostic_msgs/DiagnosticArray), all stamped with the scan's
-stamp and frame. A thin
+stamp and frame. The service ``~/reset`` (std_srvs/Trigger) drops the tracks, the learned
+background and the frame lock (a moved scanner); ids continue. A thin
 shell around :func:`extended_tracker.pipeline.step`, the same function the bag replay
 calls.
 """
@@ -23,12 +24,13 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import LaserScan
+from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from ..config import from_flat, iter_leaves, to_flat, TrackerConfig
 from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
-from ..pipeline import PipelineState, step
+from ..pipeline import PipelineState, reset, step
 from .convert import fill
 
 NODE_NAME = 'extended_tracker'
@@ -82,6 +84,7 @@ class TrackerNode(Node):
         self.pub_diag = self.create_publisher(DiagnosticArray, 'tracks/diagnostics', reliable)
         self.sub = self.create_subscription(LaserScan, 'scan', self.on_scan,
                                             qos_profile_sensor_data)
+        self.srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
         self.get_logger().info(
             f'tracking {self.sub.topic_name} in {self.cfg.model.mode} mode, p_D '
             f'{self.cfg.detection.model}, background '
@@ -130,6 +133,14 @@ class TrackerNode(Node):
             mdata, self.marker_ids = markers_data(result, self.cfg, self.marker_ids)
             self.pub_markers.publish(fill(MarkerArray(), mdata))
         self.pub_diag.publish(self._diagnostics(result))
+
+    def _on_reset(self, request, response):
+        self.state = reset(self.state, self.cfg)
+        response.success = True
+        response.message = (f'tracks, learned background and frame dropped; new ids start '
+                            f'at {self.state.filter.next_label}')
+        self.get_logger().info(f'reset: {response.message}')
+        return response
 
     def _count(self, kind: str, text: str, error: bool = False) -> None:
         n = self.counts.get(kind, 0) + 1
