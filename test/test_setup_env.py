@@ -25,6 +25,7 @@ def test_ros2_run_layout_and_ament_index():
     share = Path(get_package_share_directory('extended_tracker'))
     assert (share / 'package.xml').is_file()
     assert (share / 'config' / 'tracker.yaml').is_file()
+    assert (share / 'launch' / 'tracker.launch.py').is_file()
     assert (prefix / 'bin' / 'extended-tracker').exists()
 
 
