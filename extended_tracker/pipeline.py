@@ -201,15 +201,12 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates
         bgc = cfg.background
-        confirmed = np.isin(est.label, filt.confirmed_labels(cfg.extraction.confirm_scans))
-        moved = np.isin(est.label, filt.confirmed_labels(cfg.extraction.confirm_scans,
-                                                         bgc.moved_distance))
+        # confirmed, person-sized tracks protect; on free beams only those that moved
+        travel = filt.confirmed_travel(est.label, cfg.extraction.confirm_scans)
         major = est.axes()[0] if len(est) else np.zeros(0)
-        small = major <= bgc.protect_semi_axis
-        prot = protected_beams(sp, est.m[confirmed & small, :2], major[confirmed & small],
-                               bgc.track_gate)
-        prot_free = protected_beams(sp, est.m[moved & small, :2], major[moved & small],
-                                    bgc.track_gate)
+        guard = (travel >= 0.0) & (major <= bgc.protect_semi_axis)
+        prot, prot_free = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate,
+                                          travel[guard] >= bgc.moved_distance)
         background, keep = update_background(background, sp, dt, bgc, prot, prot_free)
         bg_points = points[~keep]
         points = points[keep]

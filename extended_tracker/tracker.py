@@ -151,10 +151,19 @@ class FilterState:
         log_card[0] = 0.0
         return FilterState(Mixture.empty(), log_card)
 
-    def confirmed_labels(self, scans: int, min_travel: float = 0.0) -> np.ndarray:
-        """Labels reported ``scans`` scans in a row that have moved ``min_travel`` m."""
-        ok = (self.reported_scans >= scans) & (self.reported_travel >= min_travel)
-        return self.reported[ok]
+    def confirmed_travel(self, labels: np.ndarray, scans: int) -> np.ndarray:
+        """
+        How far (m) each of ``labels`` has travelled, for those reported ``scans`` scans in
+        a row; -1 for the others.
+        """
+        out = np.full(len(labels), -1.0)
+        if len(labels) and len(self.reported):
+            at = {lab: i for i, lab in enumerate(self.reported.tolist())}
+            for j, lab in enumerate(labels.tolist()):
+                i = at.get(lab)
+                if i is not None and self.reported_scans[i] >= scans:
+                    out[j] = self.reported_travel[i]
+        return out
 
 
 @dataclass

@@ -143,8 +143,8 @@ def test_travel_that_protects_counts_only_scans_with_returns():
     state = report(state, 0.0, 5)
     for k in range(1, 11):                               # drifts 1 m with no returns
         state = report(state, 0.1 * k, 0)
-    assert state.reported_travel[0] == 0.0 and state.reported_scans[0] == 11
-    assert len(state.confirmed_labels(3, 0.5)) == 0
+    assert state.reported_scans[0] == 11
+    assert state.confirmed_travel(np.array([7, 8]), 3).tolist() == [0.0, -1.0]
     state = report(state, 1.2, 3)                        # seen again 1.2 m away
-    assert np.isclose(state.reported_travel[0], 1.2)
-    assert state.confirmed_labels(3, 0.5).tolist() == [7]
+    assert np.allclose(state.confirmed_travel(np.array([7]), 3), 1.2)
+    assert state.confirmed_travel(np.array([7]), 13).tolist() == [-1.0]   # not 13 in a row

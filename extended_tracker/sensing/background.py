@@ -65,15 +65,20 @@ class BackgroundState:
 
 
 def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: np.ndarray,
-                    gate: float) -> np.ndarray:
-    """Beams whose return lies within ``radius + gate`` of a confirmed track centre."""
+                    gate: float, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Beams whose return lies within ``radius + gate`` of a confirmed track centre, and those
+    near a track flagged in ``moved`` (for free beams).
+    """
     prot = np.zeros(len(scan.angles), dtype=bool)
+    prot_moved = prot.copy()
     if not len(track_centres) or not len(scan.points):
-        return prot
+        return prot, prot_moved
     d = np.linalg.norm(scan.points[:, None, :] - track_centres[None, :, :], axis=2)
-    near = np.any(d <= (track_radius + gate)[None, :], axis=1)
-    prot[scan.beam[near]] = True
-    return prot
+    close = d <= (track_radius + gate)[None, :]
+    prot[scan.beam[np.logical_or.reduce(close, axis=1)]] = True
+    prot_moved[scan.beam[np.logical_or.reduce(close[:, moved], axis=1)]] = True
+    return prot, prot_moved
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
