@@ -99,7 +99,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         known.
     protected_free : (B,) bool array, optional
         Beams near confirmed tracks that moved: kept and not learned from where the beam
-        was seen free (default: ``protected``).
+        was seen free (default: none).
 
     """
     if state is None or not state.matches(scan):
@@ -124,7 +124,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         free = state.free | (empty >= cfg.confirm_time - 1e-6)
         same = seen & np.isfinite(c) & (np.abs(r - c) <= margin)
         if protected_free is None:
-            protected_free = protected
+            protected_free = np.zeros_like(protected)
         learn = seen & ~is_bg & ~(protected & known) & ~(protected_free & free & ~known)
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
         age = np.where(learn, np.where(same, age + dt, 0.0), age)
