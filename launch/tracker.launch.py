@@ -36,7 +36,7 @@ def _node(context, *args, **kwargs):
     sim_time = LaunchConfiguration('use_sim_time').perform(context).lower() == 'true'
     return [Node(package=PACKAGE, executable='tracker_node', name='extended_tracker',
                  output='screen', parameters=files + [{'use_sim_time': sim_time}],
-                 remappings=[('scan', LaunchConfiguration('scan'))])]
+                 remappings=[('scan', LaunchConfiguration('scan').perform(context))])]
 
 
 def generate_launch_description():
