@@ -479,6 +479,22 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     return out - lse1(out)
 
 
+def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
+    """
+    A cardinality pmf (log) carried over to ``0..n_max`` when ``N_max`` changes while the
+    filter runs: padded with zeros, or truncated and renormalised (as the prediction drops
+    the mass beyond ``N_max``); all at ``n_max`` if no mass was at or below it.
+    """
+    out = np.full(n_max + 1, NEG_INF)
+    k = min(len(log_card), n_max + 1)
+    out[:k] = log_card[:k]
+    total = lse1(out)
+    if not np.isfinite(total):
+        out[n_max] = 0.0
+        return out
+    return out - total
+
+
 @cached_tables(maxsize=64)
 def _birth_matrix(n_max: int, birth_mean: float) -> np.ndarray:
     """``log p_B(n - j)`` as an (n, j) matrix, ``-inf`` above the diagonal; cached per

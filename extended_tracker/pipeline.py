@@ -132,8 +132,7 @@ def reset(state: PipelineState, cfg: TrackerConfig) -> PipelineState:
     """
     Start over as at start-up, with labels continuing after the old ones (ids are never
     reused): no tracks, no learned background (the warm-up runs again), no frame lock.
-    For a scanner that was moved, or a new session in the same run. A changed
-    ``model.n_max`` takes effect here (a running filter keeps its cardinality length).
+    For a scanner that was moved, or a new session in the same run.
     """
     return PipelineState(_reset(state.filter, cfg), last_stamp_ns=state.last_stamp_ns)
 

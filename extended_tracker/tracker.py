@@ -15,7 +15,7 @@ import numpy as np
 
 
 from .config import TrackerConfig
-from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality
+from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality, resize_cardinality
 from .ggiw import (
     cell_stats, eig2, einsum, gate_covariance, gate_pairs, inv2, IW_OFFSET, log_miss_factor,
     Mixture, predict, update_pairs, weight_key,
@@ -236,7 +236,10 @@ def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterSt
     next_label = state.next_label + len(regions)
     p_s = mc.p_survival ** dt
     birth_mean = float(np.sum(regions.w)) + birth_intensity(cfg, dt)
-    log_card = predict_cardinality(state.log_card, p_s, birth_mean)
+    log_card = state.log_card
+    if len(log_card) != mc.n_max + 1:                 # N_max changed while running
+        log_card = resize_cardinality(log_card, mc.n_max)
+    log_card = predict_cardinality(log_card, p_s, birth_mean)
     return evolve(state, mixture=Mixture.concat([survivors, regions]), log_card=log_card,
                   next_label=next_label, dt=dt)
 

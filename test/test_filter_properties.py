@@ -4,7 +4,7 @@ import numpy as np
 from hypothesis import given, strategies as st
 
 from extended_tracker.config import TrackerConfig
-from extended_tracker.cphd import predict_cardinality
+from extended_tracker.cphd import predict_cardinality, resize_cardinality
 from extended_tracker.ggiw import cell_stats, IW_OFFSET, Mixture, predict, update_pairs
 from extended_tracker.partition import build_partitions, distance_partitions
 from extended_tracker.reduction import merge_components, reduce_mixture
@@ -177,6 +177,40 @@ def test_cardinality_prediction_matches_enumeration(raw, p_s, birth):
     want /= want.sum()
     got = np.exp(predict_cardinality(np.log(p), p_s, birth))
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-15)
+
+
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=41), st.integers(0, 60))
+def test_cardinality_resized_to_a_new_n_max(raw, n_max):
+    """Oracle: the pmf conditioned on n <= n_max (zeros beyond the old length); a pmf with
+    no mass there is put at n_max."""
+    p = np.asarray(raw)
+    with np.errstate(divide='ignore'):
+        got = np.exp(resize_cardinality(np.log(p / p.sum()) if p.sum() else np.log(p), n_max))
+    want = np.zeros(n_max + 1)
+    k = min(len(p), n_max + 1)
+    want[:k] = p[:k]
+    if want.sum() > 0:
+        want /= want.sum()
+    else:
+        want[n_max] = 1.0
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-300)
+
+
+def test_filter_follows_n_max_changed_while_running():
+    from extended_tracker.config import from_dict
+    from extended_tracker.tracker import predict_state
+
+    rng = np.random.default_rng(3)
+    state = FilterState.initial(CFG)
+    for _ in range(3):
+        state, _, _ = filter_step(state, rng.normal(0, 1.0, (20, 2)), 0.1, CFG)
+    for n_max in (12, 60):
+        cfg = from_dict({'model': {'n_max': n_max}})
+        pred = predict_state(state, 0.1, cfg)
+        assert len(pred.log_card) == n_max + 1
+        new, est, _ = filter_step(state, rng.normal(0, 1.0, (20, 2)), 0.1, cfg)
+        assert len(new.log_card) == n_max + 1
+        assert np.isclose(np.exp(new.log_card).sum(), 1.0, atol=1e-9)
 
 
 @given(st.integers(0, 10_000), st.sampled_from(['cphd', 'phd']))

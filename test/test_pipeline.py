@@ -136,8 +136,6 @@ def test_reset_drops_tracks_background_and_frame_and_ids_continue():
     fresh, res = step(fresh, other, cfg)
     assert res.event is None and res.frame_id == 'rear_laser'
     assert res.diagnostics['warmup'] == 1 and len(res.estimates) == 0
-    # a changed n_max applies at the reset
-    assert len(reset(fresh, from_dict({'model': {'n_max': 12}})).filter.log_card) == 13
     # after the warm-up, what is tracked again has new ids
     for s in data[31:]:
         s = copy.deepcopy(s)
