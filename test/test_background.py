@@ -148,3 +148,26 @@ def test_travel_that_protects_counts_only_scans_with_returns():
     state = report(state, 1.2, 3)                        # seen again 1.2 m away
     assert np.allclose(state.confirmed_travel(np.array([7]), 3), 1.2)
     assert state.confirmed_travel(np.array([7]), 13).tolist() == [-1.0]   # not 13 in a row
+
+
+def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_track():
+    """
+    A small static object in open space that returns in 60 % of scans (dark, at the edge
+    of range): its beams go free while it is silent, a track forms on it, and that track
+    has not moved, so it protects nothing there and the object is learned. (With any
+    confirmed track protecting free beams, the track kept itself alive.)
+    """
+    box = SimObject((8.6, 1.0), a=0.25, b=0.2, t_start=2.0, kind='box')
+    rng = np.random.default_rng(11)
+    cfg = from_dict({})
+    state = PipelineState.initial(cfg)
+    tracked = []
+    for k, (scan, truth) in enumerate(simulate(Scene((box,), laser=LaserSpec()), 12.0,
+                                               seed=8)):
+        if truth and rng.random() < 0.4:                   # a silent scan
+            scan.ranges = np.full(len(scan.ranges), np.inf, dtype=np.float32)
+        state, res = step(state, scan, cfg)
+        d = np.linalg.norm(res.estimates.m[:, :2] - box.start, axis=1)
+        tracked.append(bool(np.any(d < 0.5)))
+    assert any(tracked[20:60])                             # it was tracked for a while
+    assert not any(tracked[80:]), [k for k, t in enumerate(tracked) if t]
