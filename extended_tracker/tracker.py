@@ -744,22 +744,19 @@ def _find_sorted(ascending: np.ndarray, a: np.ndarray):
 def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
     """Carry per-label report counts, first positions and distances travelled."""
     index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
-    k = len(est)
-    scans = np.ones(k, dtype=np.int64)
+    # each label's row in the last report (-1: reported for the first time)
+    prev = np.array([index.get(lab, -1) for lab in est.label.tolist()], dtype=np.int64)
+    again = prev >= 0
+    i = prev[again]
+    scans = np.ones(len(est), dtype=np.int64)
+    scans[again] = old.reported_scans[i] + 1
     origin = est.m[:, :2].copy()
-    for j, lab in enumerate(est.label.tolist()):
-        i = index.get(lab)
-        if i is not None:
-            scans[j] = old.reported_scans[i] + 1
-            origin[j] = old.reported_origin[i]
+    origin[again] = old.reported_origin[i]
     d = est.m[:, :2] - origin
     travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
     # only where returns placed it: a coasting label drifts with its predicted velocity
     travel[est.num_detections <= 0] = 0.0
-    for j, lab in enumerate(est.label.tolist()):
-        i = index.get(lab)
-        if i is not None:
-            travel[j] = max(travel[j], old.reported_travel[i])
+    travel[again] = np.maximum(travel[again], old.reported_travel[i])
     return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
                   reported_travel=travel)
 
