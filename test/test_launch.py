@@ -49,7 +49,8 @@ def launch_module(monkeypatch):
         pass
     for name, mod in _stand_ins().items():
         monkeypatch.setitem(sys.modules, name, mod)
-    os.environ.setdefault('AMENT_PREFIX_PATH', sys.prefix)
+    if 'AMENT_PREFIX_PATH' not in os.environ:          # the venv is the install prefix
+        monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)
     spec = importlib.util.spec_from_file_location('tracker_launch', LAUNCH_FILE)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
