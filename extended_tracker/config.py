@@ -140,6 +140,8 @@ class ExtractionConfig:
     phd_threshold: float = _f(0.5, 'phd mode reports labels heavier than this', '', 0.0, 1.0)
     confirm_scans: int = _f(3, 'scans in a row a label must be extracted before it is reported',
                             '', 1, 1000)
+    confirm_detections: int = _f(2, 'and in how many of those scans returns must have updated '
+                                 'it (its birth scan counts; 0: the scans alone)', '', 0, 1000)
     max_speed: float = _f(15.0, 'a report farther than max_speed times the time since its id '
                           'was last shown (plus jump_slack) is a new object: it gets a new id',
                           'm/s', 0.0, 1000.0, lo_open=True)

@@ -201,7 +201,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         est = state.last_estimates
         bgc = cfg.background
         # confirmed, person-sized tracks protect; on free beams only those that moved
-        travel = filt.confirmed_travel(est.label, cfg.extraction.confirm_scans)
+        travel = filt.confirmed_travel(est.label, cfg.extraction)
         major = est.axes()[0] if len(est) else np.zeros(0)
         guard = (travel >= 0.0) & (major <= bgc.protect_semi_axis)
         prot, prot_free = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate,

@@ -14,7 +14,7 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 
-from .config import TrackerConfig
+from .config import ExtractionConfig, TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality, resize_cardinality
 from .ggiw import (
     cell_stats, eig2, einsum, gate_covariance, gate_pairs, inv2, IW_OFFSET, log_miss_factor,
@@ -111,9 +111,10 @@ class FilterState:
     next_label : int
         Next unused track label.
     reported : (r,) int64 array
-        Labels extracted in the last scan (reported once ``extraction.confirm_scans`` in a
-        row); ``reported_scans`` counts consecutive scans,
-        ``reported_origin`` (r, 2) is where each was first reported and
+        Labels extracted in the last scan (reported once confirmed, see
+        :meth:`confirmed_rows`); ``reported_scans`` counts consecutive scans,
+        ``reported_hits`` how many of those returns updated it in (its birth scan
+        included), ``reported_origin`` (r, 2) is where each was first reported and
         ``reported_travel`` (r,) the farthest it has been from there in a scan where returns
         updated it (m; coasting drift does not count).
     shown : (s,) int64 array
@@ -137,6 +138,7 @@ class FilterState:
     reported_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     reported_origin: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     reported_travel: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reported_hits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shown: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shown_pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     shown_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
@@ -151,17 +153,31 @@ class FilterState:
         log_card[0] = 0.0
         return FilterState(Mixture.empty(), log_card)
 
-    def confirmed_travel(self, labels: np.ndarray, scans: int) -> np.ndarray:
+    def confirmed_rows(self, ex: ExtractionConfig) -> np.ndarray:
         """
-        How far (m) each of ``labels`` has travelled, for those reported ``scans`` scans in
-        a row; -1 for the others.
+        Which ``reported`` labels are confirmed: extracted ``ex.confirm_scans`` scans in a
+        row and updated by returns in ``ex.confirm_detections`` of them (M of N).
+
+        A static spot that returns now and then (a far edge, a half-seen table leg) makes a
+        label from one scan's returns that the filter keeps extracting for a few scans
+        while it coasts; counting the scans alone showed it as an object for a scan or two,
+        again each time the spot returned.
+        """
+        return ((self.reported_scans >= ex.confirm_scans)
+                & (self.reported_hits >= ex.confirm_detections))
+
+    def confirmed_travel(self, labels: np.ndarray, ex: ExtractionConfig) -> np.ndarray:
+        """
+        How far (m) each of ``labels`` has travelled, for those confirmed
+        (:meth:`confirmed_rows`); -1 for the others.
         """
         out = np.full(len(labels), -1.0)
         if len(labels) and len(self.reported):
+            ok = self.confirmed_rows(ex)
             at = {lab: i for i, lab in enumerate(self.reported.tolist())}
             for j, lab in enumerate(labels.tolist()):
                 i = at.get(lab)
-                if i is not None and self.reported_scans[i] >= scans:
+                if i is not None and ok[i]:
                     out[j] = self.reported_travel[i]
         return out
 
@@ -448,6 +464,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                    np.concatenate([mix.label[comp[sel]], born]))])
 
     n_det = _detections_per_label(mix, comp, cell, w_det, w_missed, stats)
+    # a new label was made from returns: the size of its heaviest birth cell
+    for lab, c in _birth_cells(born, bsel, w_birth, state.next_label):
+        n_det[lab] = int(stats.n[c])
     vis_of = {}
     if visibility is not None:
         for i in range(n_comp):
@@ -473,8 +492,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     new_state, candidates, record, diag.handed_over = _hand_over(state, new_state, candidates,
                                                                  cfg)
     new_state = _record_reports(record, new_state, candidates)
-    # report a label once it has been extracted confirm_scans scans in a row
-    confirmed = new_state.reported_scans >= cfg.extraction.confirm_scans
+    # report a label once confirmed (M of N)
+    confirmed = new_state.confirmed_rows(cfg.extraction)
     shown = candidates.take(confirmed)
     new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time)
     # the filter's own estimates are what the shown record keeps; the report groups the
@@ -742,7 +761,8 @@ def _find_sorted(ascending: np.ndarray, a: np.ndarray):
 
 
 def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
-    """Carry per-label report counts, first positions and distances travelled."""
+    """Carry per-label report counts, scans with returns, first positions and distances
+    travelled."""
     index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
     # each label's row in the last report (-1: reported for the first time)
     prev = np.array([index.get(lab, -1) for lab in est.label.tolist()], dtype=np.int64)
@@ -757,8 +777,10 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
     # only where returns placed it: a coasting label drifts with its predicted velocity
     travel[est.num_detections <= 0] = 0.0
     travel[again] = np.maximum(travel[again], old.reported_travel[i])
+    hits = (est.num_detections > 0).astype(np.int64)
+    hits[again] += old.reported_hits[i]
     return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
-                  reported_travel=travel)
+                  reported_travel=travel, reported_hits=hits)
 
 
 def _pad(a, n: int, fill: float):
@@ -860,6 +882,18 @@ def _label_births(pset, birth_cells, next_label, claim=None, claim_weight=None,
     roots = np.array([find_root(parent, i) for i in range(k)])
     uniq, inverse = np.unique(roots, return_inverse=True)
     return (next_label + inverse).astype(np.int64), next_label + len(uniq)
+
+
+def _birth_cells(born, bsel, w_birth, first_new: int):
+    """``(label, cell)`` of each new label (``>= first_new``) and its heaviest birth cell
+    (``born`` labels the birth cells ``bsel``; ``w_birth`` the weights of all cells)."""
+    new = (born >= first_new).nonzero()[0]
+    if not len(new):
+        return []
+    order = new[np.lexsort((-w_birth[bsel[new]], born[new]))]
+    lab = born[order]
+    head = np.concatenate([[True], lab[1:] != lab[:-1]])
+    return list(zip(lab[head].tolist(), bsel[order[head]].tolist()))
 
 
 def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):

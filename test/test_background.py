@@ -143,11 +143,15 @@ def test_travel_that_protects_counts_only_scans_with_returns():
     state = report(state, 0.0, 5)
     for k in range(1, 11):                               # drifts 1 m with no returns
         state = report(state, 0.1 * k, 0)
-    assert state.reported_scans[0] == 11
-    assert state.confirmed_travel(np.array([7, 8]), 3).tolist() == [0.0, -1.0]
+    assert state.reported_scans[0] == 11 and state.reported_hits[0] == 1
+    scans_alone = from_dict({'extraction': {'confirm_detections': 0}}).extraction
+    assert state.confirmed_travel(np.array([7, 8]), scans_alone).tolist() == [0.0, -1.0]
+    # by default returns must have updated it in two of its scans: one is not enough
+    assert state.confirmed_travel(np.array([7]), from_dict({}).extraction).tolist() == [-1.0]
     state = report(state, 1.2, 3)                        # seen again 1.2 m away
-    assert np.allclose(state.confirmed_travel(np.array([7]), 3), 1.2)
-    assert state.confirmed_travel(np.array([7]), 13).tolist() == [-1.0]   # not 13 in a row
+    assert np.allclose(state.confirmed_travel(np.array([7]), from_dict({}).extraction), 1.2)
+    not_yet = from_dict({'extraction': {'confirm_scans': 13}}).extraction
+    assert state.confirmed_travel(np.array([7]), not_yet).tolist() == [-1.0]  # not 13 in a row
 
 
 def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_track():

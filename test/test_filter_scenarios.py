@@ -122,3 +122,39 @@ def test_side_by_side_pair_is_resolved_once_they_separate(seed):
     ids = ids_of_truth(hist[50:])
     assert all(None not in v and len(set(v)) == 1 for v in ids.values()), ids
     assert ids[0][0] != ids[1][0]
+
+
+def _spot(seen_scans, confirm_detections, scans=8):
+    """Labels shown each scan, and the (scans, hits) record of label 1, for a tight
+    spot of three returns in the first ``seen_scans`` scans and none after."""
+    cfg = from_dict({'model': {'surveillance_area': 400.0},
+                     'extraction': {'confirm_detections': confirm_detections}})
+    rng = np.random.default_rng(3)
+    state = FilterState.initial(cfg)
+    shown, record = [], []
+    for k in range(scans):
+        pts = (np.array([3.0, 1.0]) + rng.normal(0.0, 0.05, (3, 2)) if k < seen_scans
+               else np.zeros((0, 2)))
+        state, est, _ = filter_step(state, pts, DT, cfg)
+        shown.append(est.label.tolist())
+        record.append((state.reported_scans.tolist(), state.reported_hits.tolist()))
+    return shown, record
+
+
+def test_returns_in_one_scan_are_not_an_object_returns_in_two_of_three_are():
+    """
+    M of N confirmation: a label is shown once extracted confirm_scans (3) scans in a row
+    and updated by returns in confirm_detections (2) of them, its birth scan included.
+    """
+    # one scan of returns: the label coasts for three scans, never shown
+    shown, record = _spot(1, 2)
+    assert shown == [[]] * 8
+    assert record[:3] == [([1], [1]), ([2], [1]), ([3], [1])]     # the birth scan is a hit
+    # counting the scans alone, that coasting label was shown (the rule is what hides it)
+    shown, _ = _spot(1, 0)
+    assert [1] in shown
+    # two scans of returns, then none: shown, as with the scans alone
+    assert _spot(2, 2)[0] == _spot(2, 0)[0] and [1] in _spot(2, 2)[0]
+    # seen in every scan: shown from the third scan on, no later than before
+    shown, _ = _spot(8, 2)
+    assert shown[:2] == [[], []] and all(s == [1] for s in shown[2:])
