@@ -154,7 +154,8 @@ def test_returns_in_one_scan_are_not_an_object_returns_in_two_of_three_are():
     shown, _ = _spot(1, 0)
     assert [1] in shown
     # two scans of returns, then none: shown, as with the scans alone
-    assert _spot(2, 2)[0] == _spot(2, 0)[0] and [1] in _spot(2, 2)[0]
+    shown, _ = _spot(2, 2)
+    assert shown == _spot(2, 0)[0] and [1] in shown
     # seen in every scan: shown from the third scan on, no later than before
     shown, _ = _spot(8, 2)
     assert shown[:2] == [[], []] and all(s == [1] for s in shown[2:])
