@@ -114,7 +114,9 @@ class FilterState:
         Labels extracted in the last scan (reported once confirmed, see
         :meth:`confirmed_rows`); ``reported_scans`` counts consecutive scans,
         ``reported_hits`` how many of those returns updated it in (its birth scan
-        included), ``reported_origin`` (r, 2) is where each was first reported and
+        included; a label split off another's far component counts from its next scan,
+        the returns of the split scan having updated the other label),
+        ``reported_origin`` (r, 2) is where each was first reported and
         ``reported_travel`` (r,) the farthest it has been from there in a scan where returns
         updated it (m; coasting drift does not count).
     shown : (s,) int64 array
