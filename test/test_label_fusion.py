@@ -22,10 +22,14 @@ def weights_by_label(mix):
 
 def test_two_light_labels_on_one_spot_become_the_senior_label():
     mix = mixture([(29, 0.36, 0.56, -1.64), (30, 0.74, 0.55, -1.64), (30, 0.01, 0.60, -1.6)])
-    # neither reported yet: the older label stays, though lighter
+    # neither reported yet: the heavier label stays (the older one may have been shown
+    # long ago somewhere else, and a light coasting label must not bring its id along)
     out, fused = _fuse_duplicate_labels(mix, MERGE, 1.5)
     assert fused == 1
-    assert weights_by_label(out) == {29: 1.11}
+    assert weights_by_label(out) == {30: 1.11}
+    # equally heavy too: the older label
+    even = mixture([(29, 0.5, 0.56, -1.64), (30, 0.5, 0.55, -1.64)])
+    assert weights_by_label(_fuse_duplicate_labels(even, MERGE, 1.5)[0]) == {29: 1.0}
     # nothing else changes
     assert np.array_equal(out.m, mix.m) and np.array_equal(out.w, mix.w)
     # the id a user has been shown stays: the label reported in more scans in a row
