@@ -111,7 +111,7 @@ class FilterState:
     next_label : int
         Next unused track label.
     reported : (r,) int64 array
-        Labels extracted in the last scan (reported once confirmed, see
+        Labels extracted in the last scan, ascending (reported once confirmed, see
         :meth:`confirmed_rows`); ``reported_scans`` counts consecutive scans,
         ``reported_hits`` how many of those returns updated it in (its birth scan
         included; a label split off another's far component counts from its next scan,
@@ -175,12 +175,9 @@ class FilterState:
         """
         out = np.full(len(labels), -1.0)
         if len(labels) and len(self.reported):
-            ok = self.confirmed_rows(ex)
-            at = {lab: i for i, lab in enumerate(self.reported.tolist())}
-            for j, lab in enumerate(labels.tolist()):
-                i = at.get(lab)
-                if i is not None and ok[i]:
-                    out[j] = self.reported_travel[i]
+            at, found = _find_sorted(self.reported, labels)
+            ok = found & self.confirmed_rows(ex)[at]
+            out[ok] = self.reported_travel[at[ok]]
         return out
 
 
