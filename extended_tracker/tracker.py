@@ -979,10 +979,10 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         scans = full[cand]
     # seniority: most scans reported, then the heavier, then the older label (cand is in
     # label order)
-    senior = np.lexsort((np.arange(len(cand)), -weight_key(weight[cand]), -scans))
+    w = weight[cand]
+    senior = np.lexsort((np.arange(len(cand)), -weight_key(w), -scans))
     rank = np.empty(len(cand), dtype=np.int64)
     rank[senior] = np.arange(len(cand))
-    w = weight[cand]
     into = np.arange(len(cand))
     total = w.copy()
     for i in senior.tolist():
