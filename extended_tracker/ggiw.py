@@ -158,11 +158,21 @@ class Mixture:
 
     @cached_property
     def _by_label(self):
-        order = np.lexsort((-weight_key(self.w), self.label))
-        lab = self.label[order]
-        is_head = np.ones(len(order), dtype=bool)
-        is_head[1:] = lab[1:] != lab[:-1]
+        order, is_head = group_heads(self.label, -weight_key(self.w))
         return read_only(order, is_head, is_head.cumsum() - 1)
+
+
+def group_heads(group: np.ndarray, key: np.ndarray):
+    """
+    ``(order, is_head)``: indices sorted by ``group`` ascending, then by ``key`` ascending
+    (ties by index), and over that order whether each is the first of its group (with
+    ``key = -weight_key(w)``, its heaviest).
+    """
+    order = np.lexsort((key, group))
+    g = group[order]
+    is_head = np.ones(len(order), dtype=bool)
+    is_head[1:] = g[1:] != g[:-1]
+    return order, is_head
 
 
 def weight_key(w) -> np.ndarray:

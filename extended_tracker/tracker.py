@@ -17,8 +17,8 @@ import numpy as np
 from .config import ExtractionConfig, TrackerConfig
 from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality, resize_cardinality
 from .ggiw import (
-    cell_stats, eig2, einsum, gate_covariance, gate_pairs, inv2, IW_OFFSET, log_miss_factor,
-    Mixture, predict, update_pairs, weight_key,
+    cell_stats, eig2, einsum, gate_covariance, gate_pairs, group_heads, inv2, IW_OFFSET,
+    log_miss_factor, Mixture, predict, update_pairs, weight_key,
 )
 from .memo import cached_tables, evolve, read_only
 from .partition import build_partitions, find_root, union_min
@@ -889,10 +889,9 @@ def _birth_cells(born, bsel, w_birth, first_new: int):
     new = (born >= first_new).nonzero()[0]
     if not len(new):
         return []
-    order = new[np.lexsort((-w_birth[bsel[new]], born[new]))]
-    lab = born[order]
-    head = np.concatenate([[True], lab[1:] != lab[:-1]])
-    return list(zip(lab[head].tolist(), bsel[order[head]].tolist()))
+    order, is_head = group_heads(born[new], -w_birth[bsel[new]])
+    head = new[order[is_head]]
+    return list(zip(born[head].tolist(), bsel[head].tolist()))
 
 
 def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
@@ -903,9 +902,8 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     pair_lab = inv[comp]
     detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
     missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
-    order = np.lexsort((-weight_key(w_det), pair_lab))  # heaviest pair first per label
-    lab = pair_lab[order]
-    first = order[np.concatenate([[True], lab[1:] != lab[:-1]])]
+    order, is_head = group_heads(pair_lab, -weight_key(w_det))
+    first = order[is_head]                               # each label's heaviest pair
     ok = detected[pair_lab[first]] > missed[pair_lab[first]]
     first = first[ok]
     return dict(zip(labels[pair_lab[first]].tolist(), stats.n[cell[first]].tolist()))
