@@ -885,11 +885,12 @@ def _label_births(pset, birth_cells, next_label, claim=None, claim_weight=None,
 
 def _birth_cells(born, bsel, w_birth, first_new: int):
     """``(label, cell)`` of each new label (``>= first_new``) and its heaviest birth cell
-    (``born`` labels the birth cells ``bsel``; ``w_birth`` the weights of all cells)."""
+    (``born`` labels the birth cells ``bsel``; ``w_birth`` the weights of all cells;
+    weights that tie but for their last bits order by row, :func:`weight_key`)."""
     new = (born >= first_new).nonzero()[0]
     if not len(new):
         return []
-    order, is_head = group_heads(born[new], -w_birth[bsel[new]])
+    order, is_head = group_heads(born[new], -weight_key(w_birth[bsel[new]]))
     head = new[order[is_head]]
     return list(zip(born[head].tolist(), bsel[head].tolist()))
 

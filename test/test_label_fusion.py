@@ -103,3 +103,16 @@ def test_a_shown_id_survives_a_heavier_fresh_label_on_the_same_object():
     state, est, diag = filter_step(state, pts, 0.1, cfg)
     assert diag.fused_labels == 1
     assert est.label.tolist() == [7]
+
+
+def test_a_new_labels_birth_cell_does_not_rest_on_last_bits():
+    """Of a new label's birth cells the heaviest gives its detections, and weights that tie
+    but for their last bits (numpy's exp differs there between CPUs) order by row."""
+    from extended_tracker.tracker import _birth_cells
+
+    born, bsel = np.array([5, 5, 6]), np.array([0, 2, 1])
+    for eps in (1e-12, -1e-12):
+        w = np.array([0.3, 0.1, 0.3 * (1.0 + eps)])      # cells 0 and 2 tie to float32
+        assert _birth_cells(born, bsel, w, 5) == [(5, 0), (6, 1)]
+    assert _birth_cells(born, bsel, np.array([0.3, 0.1, 0.4]), 5) == [(5, 2), (6, 1)]
+    assert _birth_cells(born, bsel, np.array([0.3, 0.1, 0.4]), 6) == [(6, 1)]  # 5 not new
