@@ -130,6 +130,13 @@ class ReductionConfig:
                             '', 0.0, 10.0)
     split_weight: float = _f(0.4, 'a far component of a label this heavy gets a new label, a '
                              'lighter one is dropped', '', 0.0, 10.0)
+    pair_scans: int = _f(0, 'two labels at most pair_distance apart, one of them part-sized '
+                         '(a leg), in this many scans in a row are one object seen as two and '
+                         'become one track (0: never)', 'scans', 0, 100000)
+    pair_distance: float = _f(0.6, 'how near the centres of a pair stay', 'm', 0.0, 10.0)
+    pair_speed: float = _f(2.0, 'how much the velocities of a pair differ at most (one leg '
+                           'swings while the other stands)', 'm/s', 0.0, 100.0)
+    pair_semi_axis: float = _f(0.3, 'largest semi-major axis of a part', 'm', 0.0, 10.0)
 
 
 @dataclass(frozen=True)
@@ -362,7 +369,12 @@ PRESETS: dict[str, dict] = {
     # Such a scanner sees people only, so an id may move at walking speed, not a car's:
     # max_speed 3 m/s gives a new id where a coasting track took over a newcomer 4-9 m
     # away (leg_tracker positive_1 and demo recordings).
-    'leg_height': {'partition': {'d_min': 0.45}, 'extraction': {'max_speed': 3.0}},
+    # The legs of a walker tracked one by one stay two ids side by side: pair_scans 3
+    # makes one track of two labels that stay together, one of them leg-sized, for 3
+    # scans (the confirmation's count, so a leg born beside its walker is joined before
+    # it is shown).
+    'leg_height': {'partition': {'d_min': 0.45}, 'extraction': {'max_speed': 3.0},
+                   'reduction': {'pair_scans': 3}},
 }
 
 

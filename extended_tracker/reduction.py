@@ -312,3 +312,30 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         capped = len(merged) - max_components
         merged = merged.take(np.sort(order))
     return merged, capped
+
+
+def join_parts(mix: Mixture, heads: np.ndarray, weights: np.ndarray, label: int) -> Mixture:
+    """
+    One component for an object tracked as separate parts (a walker's two legs).
+
+    ``heads`` are the parts' components, ``weights`` their labels' total weights. Each
+    part counts by its expected returns (weight times rate). The kinematics are moment
+    matched; the extent is the second moment of the union, each part's expected extent
+    about the joint centre, kept at the parts' least certain ``v``; the rate is the sum of
+    the parts' rates, at their least certain ``beta``. The weight is the heaviest part's:
+    the parts are one object. The result carries ``label``.
+    """
+    heads = np.asarray(heads)
+    rate = mix.alpha[heads] / mix.beta[heads]
+    share = weights * rate
+    share = share / share.sum()
+    m = share @ mix.m[heads]
+    dm = mix.m[heads] - m
+    P = einsum('k,kij->ij', share, mix.P[heads] + dm[:, :, None] * dm[:, None, :])
+    dc = dm[:, :2]
+    X = einsum('k,kij->ij', share, mix.expected_extent(heads) + dc[:, :, None] * dc[:, None, :])
+    v = float(mix.v[heads].min())
+    beta = float(mix.beta[heads].min())
+    return Mixture(np.array([float(np.max(weights))]), np.array([rate.sum() * beta]),
+                   np.array([beta]), m[None], symmetrize(P)[None], np.array([v]),
+                   symmetrize(X * (v - IW_OFFSET))[None], np.array([label], dtype=np.int64))

@@ -22,7 +22,7 @@ from .ggiw import (
 )
 from .memo import cached_tables, evolve, read_only
 from .partition import build_partitions, find_root, union_min
-from .reduction import reduce_mixture
+from .reduction import join_parts, reduce_mixture
 
 NEG_INF = -np.inf
 # a thin contour piece (see group_segments): semi-minor axis at most this, semi-major at least
@@ -130,6 +130,9 @@ class FilterState:
         ``(seconds ago, next_label then)`` at the start of each scan of the last
         ``extraction.handover_time`` seconds, oldest first: labels from the first
         ``next_label`` on were created in that time.
+    pairs : (k, 2) int64 array
+        Pairs of labels (smaller first) extracted as close parts in the last scan, and
+        ``pair_runs`` (k,) in how many scans in a row (see :func:`_join_parts`).
 
     """
 
@@ -146,6 +149,8 @@ class FilterState:
     shown_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     shown_elapsed: np.ndarray = field(default_factory=lambda: np.zeros(0))
     label_clock: tuple = ()
+    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    pair_runs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     dt: float = 0.1
 
     @staticmethod
@@ -196,6 +201,7 @@ class StepDiagnostics:
     capped_components: int = 0
     oversized: int = 0
     fused_labels: int = 0
+    joined_labels: int = 0
     relabelled: int = 0
     handed_over: int = 0
     grouped: int = 0
@@ -491,16 +497,143 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     new_state, candidates, record, diag.handed_over = _hand_over(state, new_state, candidates,
                                                                  cfg)
     new_state = _record_reports(record, new_state, candidates)
+    if cfg.reduction.pair_scans:
+        new_state, candidates, joined = _join_parts(new_state, candidates, cfg)
+        diag.joined_labels = len(joined)
     # report a label once confirmed (M of N)
     confirmed = new_state.confirmed_rows(cfg.extraction)
     shown = candidates.take(confirmed)
     new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time)
+    if cfg.reduction.pair_scans and len(joined):
+        new_state = _forget_shown(new_state, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
     shown, diag.grouped = group_segments(shown, new_state.reported_scans[confirmed],
                                          cfg.extraction.group_gap,
                                          cfg.extraction.group_speed)
     return new_state, shown, diag
+
+
+def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
+    """
+    Make one track of two extracted labels that have stayed together as parts of one
+    object (a walker's two legs).
+
+    Two extracted labels are a candidate pair when one of them is part-sized (semi-major
+    axis at most ``reduction.pair_semi_axis``), their centres are within
+    ``reduction.pair_distance`` and their velocities differ by at most
+    ``reduction.pair_speed`` (nearest pairs first, one to one). A pair that has been one
+    in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
+    heaviest components become one (:func:`join_parts`) under the senior label (reported
+    in more scans in a row; then the smaller label) and the other label's components are
+    dropped. The junior label leaves the estimates and the report record, so with
+    ``pair_scans`` at most ``extraction.confirm_scans`` a part born beside its object is
+    joined before it is ever shown. In CPHD mode the cardinality pmf loses the dropped
+    weight (:func:`_thin_cardinality`). The senior's estimate this scan is as extracted;
+    the next scan starts from the joined component.
+
+    ``state``'s report record must be ``est``'s (:func:`_record_reports`). Returns the
+    state, the estimates and the junior labels (ascending).
+
+    Notes
+    -----
+    A scanner at leg height sees a walker as two legs. The filter often tracks each leg
+    on its own: sub-partitioning then keeps them apart, since it splits a cell among the
+    confident tracks that gate it (which is what keeps two people apart). A walker
+    tracked as one ellipse is split again when a wide stride puts its legs in cells of
+    their own: the far leg is born anew next to it. A walker's legs stay within about
+    0.6 m of each other, and one swings at up to twice the walking speed while the other
+    stands. Pairing leg-sized reports into one report scan by scan, without a record,
+    made the report change label whenever the stride took the legs apart.
+    """
+    rc = cfg.reduction
+    joined = np.zeros(0, np.int64)
+    pairs, runs = np.zeros((0, 2), np.int64), joined
+    if len(est) > 1:
+        semi = np.sqrt(eig2(est.X)[0])
+        i, j = np.triu_indices(len(est), 1)
+        d = est.m[i, :2] - est.m[j, :2]
+        dv = est.m[i, 2:] - est.m[j, 2:]
+        d2 = np.add.reduce(d * d, axis=1)
+        ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
+              & (d2 <= rc.pair_distance ** 2)
+              & (np.add.reduce(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
+        taken, rows = set(), []
+        for k in ok[d2[ok].argsort(kind='stable')].tolist():
+            if i[k] not in taken and j[k] not in taken:
+                taken.update((i[k], j[k]))
+                rows.append((i[k], j[k]))
+        rows = np.array(rows, dtype=np.int64).reshape(-1, 2)
+        pairs = est.label[rows]                        # labels ascending: smaller first
+        runs = np.ones(len(rows), np.int64)
+        for n, (a, b) in enumerate(pairs.tolist()):
+            was = ((state.pairs[:, 0] == a) & (state.pairs[:, 1] == b)).nonzero()[0]
+            if len(was):
+                runs[n] += state.pair_runs[was[0]]
+        ready = runs >= rc.pair_scans
+        if np.logical_or.reduce(ready):
+            state, est, joined = _join(state, est, rows[ready], cfg)
+            pairs, runs = pairs[~ready], runs[~ready]
+    return evolve(state, pairs=pairs, pair_runs=runs), est, joined
+
+
+def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConfig):
+    """Join the labels of each pair of ``est`` rows (see :func:`_join_parts`)."""
+    mix = state.mixture
+    order, is_head, _ = mix.by_label()
+    labels, _, weight = mix.per_label()
+    heads = order[is_head]
+    drop = np.zeros(len(mix), dtype=bool)
+    joined, junior_rows, removed = [], [], 0.0
+    seniority = state.reported_scans
+    for a, b in rows.tolist():
+        if (seniority[b], -est.label[b]) > (seniority[a], -est.label[a]):
+            a, b = b, a
+        at = labels.searchsorted(est.label[[a, b]])
+        w = weight[at]
+        joined.append(join_parts(mix, heads[at], w, int(est.label[a])))
+        drop |= (mix.label == est.label[a]) | (mix.label == est.label[b])
+        junior_rows.append(b)
+        removed += float(w.sum() - w.max())
+    log_card = state.log_card
+    if cfg.model.mode == 'cphd':
+        log_card = _thin_cardinality(log_card, removed)
+    keep = np.ones(len(est), dtype=bool)
+    keep[junior_rows] = False
+    state = evolve(state, mixture=Mixture.concat([mix.take(~drop)] + joined),
+                   log_card=log_card, reported=state.reported[keep],
+                   reported_scans=state.reported_scans[keep],
+                   reported_origin=state.reported_origin[keep],
+                   reported_travel=state.reported_travel[keep],
+                   reported_hits=state.reported_hits[keep])
+    return state, est.take(keep), np.sort(est.label[~keep])
+
+
+def _forget_shown(state: FilterState, labels: np.ndarray) -> FilterState:
+    """``state`` without ``labels`` (ascending) in its shown record: they are not lost, so
+    no new object takes their ids over (:func:`_hand_over`)."""
+    keep = ~_find_sorted(labels, state.shown)[1]
+    return evolve(state, shown=state.shown[keep], shown_pos=state.shown_pos[keep],
+                  shown_vel=state.shown_vel[keep], shown_elapsed=state.shown_elapsed[keep])
+
+
+def _thin_cardinality(log_card: np.ndarray, removed: float) -> np.ndarray:
+    """
+    The cardinality pmf after ``removed`` expected objects are taken away: whole objects
+    one at a time, the last with the fractional remainder as its probability
+    (``p'(n) = (1 - f) p(n) + f p(n + 1)``, ``p'(0)`` also gaining ``f p(1)``).
+    """
+    p = np.exp(log_card - log_card.max())
+    p /= p.sum()
+    while removed > 1e-12:
+        f = min(removed, 1.0)
+        q = (1.0 - f) * p
+        q[:-1] += f * p[1:]
+        q[0] += f * p[0]                           # nothing to take from none
+        p = q
+        removed -= f
+    with np.errstate(divide='ignore'):
+        return np.log(p)
 
 
 def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):

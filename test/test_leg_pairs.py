@@ -1,0 +1,203 @@
+"""
+A walker's two legs tracked as two labels become one track (``reduction.pair_scans``,
+on in the ``leg_height`` preset); two objects that only pass each other stay two.
+
+The joined component is checked against sampling (its centre, extent and kinematic
+covariance are moments of the two parts), the thinned cardinality pmf against
+enumeration, and the rule on synthetic legs with the filter running.
+"""
+
+from dataclasses import replace
+from itertools import product
+
+import numpy as np
+import pytest
+
+from extended_tracker.config import from_dict, PRESETS
+from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.reduction import join_parts
+from extended_tracker.tracker import _thin_cardinality, FilterState, filter_step
+
+
+def leg_config(pair_scans):
+    legs = {k: dict(v) for k, v in PRESETS['leg_height'].items()}
+    legs['reduction']['pair_scans'] = pair_scans
+    return from_dict(legs)
+
+
+def two_parts():
+    m = np.array([[1.0, 0.2, 0.9, 0.1], [1.3, -0.1, 0.2, -0.3]])
+    P = np.array([np.diag([0.01, 0.02, 0.3, 0.2]), np.diag([0.03, 0.01, 0.1, 0.4])])
+    P[0, 0, 2] = P[0, 2, 0] = 0.02
+    X = np.array([[[0.010, 0.003], [0.003, 0.006]], [[0.004, -0.001], [-0.001, 0.012]]])
+    v = np.array([14.0, 25.0])
+    return Mixture(np.array([0.9, 0.7]), np.array([24.0, 12.0]), np.array([3.0, 2.0]), m, P,
+                   v, X * (v - IW_OFFSET)[:, None, None], np.array([4, 9]))
+
+
+def test_the_joined_component_holds_the_moments_of_both_parts():
+    mix = two_parts()
+    weights = np.array([1.0, 0.8])                     # the labels' total weights
+    out = join_parts(mix, np.array([0, 1]), weights, 4)
+    rate = mix.alpha / mix.beta                        # 8 and 6 returns a scan
+    # returns of the two parts: each part's share in proportion to weight times rate,
+    # spread over its expected extent about its centre
+    rng = np.random.default_rng(0)
+    share = weights * rate / np.sum(weights * rate)
+    n = 400_000
+    k = rng.choice(2, size=n, p=share)
+    X = mix.V / (mix.v - IW_OFFSET)[:, None, None]
+    pts = np.empty((n, 2))
+    states = np.empty((n, 4))
+    for part in (0, 1):
+        sel = k == part
+        pts[sel] = rng.multivariate_normal(mix.m[part, :2], X[part], sel.sum())
+        states[sel] = rng.multivariate_normal(mix.m[part], mix.P[part], sel.sum())
+    assert np.allclose(out.m[0], states.mean(axis=0), atol=3e-3)
+    assert np.allclose(out.m[0, :2], pts.mean(axis=0), atol=1e-3)
+    assert np.allclose(out.expected_extent()[0], np.cov(pts.T), atol=4e-4)
+    assert np.allclose(out.P[0], np.cov(states.T), atol=4e-3)
+    # one object: the heavier part's weight, the returns of both, the senior's label,
+    # no more certain about rate or extent than the less certain part
+    assert out.w[0] == 1.0 and out.label[0] == 4
+    assert out.expected_rate()[0] == pytest.approx(rate.sum())
+    assert out.beta[0] == 2.0 and out.v[0] == 14.0
+
+
+def enumerated_thinning(p, removed):
+    """The pmf after whole objects are taken away one by one (the last with the fractional
+    part as its probability), none from an empty scene: every branch enumerated."""
+    steps = [1.0] * int(removed) + ([removed - int(removed)] if removed % 1 else [])
+    out = np.zeros_like(p)
+    for n, pn in enumerate(p):
+        for taken in product([0, 1], repeat=len(steps)):
+            prob, left = pn, n
+            for f, t in zip(steps, taken):
+                prob *= f if t else 1.0 - f
+                if t and left:
+                    left -= 1
+            out[left] += prob
+    return out
+
+
+@pytest.mark.parametrize('removed', [0.4, 1.0, 1.3, 2.75])
+def test_thinning_the_cardinality_matches_enumeration(removed):
+    rng = np.random.default_rng(int(removed * 100))
+    p = rng.dirichlet(np.ones(9))
+    got = np.exp(_thin_cardinality(np.log(p), removed))
+    assert np.allclose(got, enumerated_thinning(p, removed), atol=1e-14, rtol=1e-12)
+    assert got.sum() == pytest.approx(1.0, abs=1e-14)
+    # far from the empty scene the mean falls by exactly what was taken away
+    far = np.zeros(12)
+    far[6:9] = [0.2, 0.5, 0.3]
+    with np.errstate(divide='ignore'):
+        log_far = np.log(far)
+    mean = np.arange(12) @ np.exp(_thin_cardinality(log_far, removed))
+    assert mean == pytest.approx(np.arange(12) @ far - removed, abs=1e-12)
+
+
+def legs(rng, t, centre, velocity, gap=0.35, n=8):
+    """Returns of one walker's two legs, ``gap`` apart across its heading; the legs take
+    turns to swing (one moves at twice the walking speed while the other stands)."""
+    c = np.asarray(centre) + np.asarray(velocity) * t
+    v = np.asarray(velocity, dtype=float)
+    heading = v / max(np.linalg.norm(v), 1e-9)
+    side = np.array([-heading[1], heading[0]])
+    stride = 0.15 * np.sin(2 * np.pi * 1.0 * t) * heading      # one leg ahead, then the other
+    feet = [c + 0.5 * gap * side + stride, c - 0.5 * gap * side - stride]
+    return np.vstack([f + rng.normal(0, 0.03, (n, 2)) for f in feet])
+
+
+def tracked_legs(cfg, left, right):
+    """A state with the legs already tracked as two labels (as a replay leaves them)."""
+    state = FilterState.initial(cfg)
+    k = 2
+    m = np.array([[*left, 1.0, 0.0], [*right, 1.0, 0.0]])
+    P = np.broadcast_to(np.diag([0.03 ** 2, 0.03 ** 2, 0.2, 0.2]), (k, 4, 4)).copy()
+    v = np.full(k, 30.0)
+    V = np.broadcast_to((30.0 - IW_OFFSET) * 0.07 ** 2 * np.eye(2), (k, 2, 2)).copy()
+    mix = Mixture(np.ones(k), np.full(k, 40.0), np.full(k, 5.0), m, P, v, V,
+                  np.array([3, 5]))
+    log_card = np.full(cfg.model.n_max + 1, -np.inf)
+    log_card[2] = 0.0
+    return replace(state, mixture=mix, log_card=log_card, next_label=6,
+                   reported=np.array([3, 5]), reported_scans=np.array([40, 30]),
+                   reported_hits=np.array([40, 30]),
+                   reported_origin=np.array([left, right]), reported_travel=np.zeros(2))
+
+
+@pytest.mark.parametrize('pair_scans', [0, 3])
+def test_two_tracked_legs_of_one_walker_become_one_track(pair_scans):
+    cfg = leg_config(pair_scans)
+    rng = np.random.default_rng(7)
+    state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
+    shown, joined = [], 0
+    for k in range(30):
+        state, est, diag = filter_step(state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0)),
+                                       0.1, cfg)
+        shown.append(est.label.tolist())
+        joined += diag.joined_labels
+    if pair_scans:
+        # joined after three scans together, under the label reported longer
+        assert joined == 1
+        assert all(s == [3] for s in shown[3:])
+        assert int(state.log_card.argmax()) == 1
+    else:
+        # what the leg-height recordings showed: two ids side by side to the end
+        assert joined == 0
+        assert shown[-1] == [3, 5]
+
+
+@pytest.mark.parametrize('pair_scans', [0, 3])
+def test_a_leg_born_beside_its_walker_is_never_shown(pair_scans):
+    """A walker tracked as one leg: the other, once tracked on its own, is joined before
+    it is confirmed (pair_scans is the confirmation's count)."""
+    cfg = leg_config(pair_scans)
+    rng = np.random.default_rng(11)
+    state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
+    mix = state.mixture.take(np.array([0]))
+    log_card = np.full(cfg.model.n_max + 1, -np.inf)
+    log_card[1] = 0.0
+    state = replace(state, mixture=mix, log_card=log_card, reported=np.array([3]),
+                    reported_scans=np.array([40]), reported_hits=np.array([40]),
+                    reported_origin=np.array([[2.0, 0.175]]), reported_travel=np.zeros(1))
+    seen = set()
+    for k in range(30):
+        state, est, _ = filter_step(state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0)),
+                                    0.1, cfg)
+        seen.update(est.label.tolist())
+    if pair_scans:
+        assert seen == {3}
+    else:
+        assert 3 in seen and len(seen) > 1
+
+
+def test_two_walkers_passing_each_other_stay_two():
+    """Legs of two people walking past each other 0.45 m apart: close for a few scans,
+    but their velocities differ by far more than one leg's swing."""
+    cfg = leg_config(3)
+    rng = np.random.default_rng(5)
+    state = tracked_legs(cfg, (1.0, 0.225), (3.0, -0.225))
+    state = replace(state, mixture=replace(state.mixture, m=np.array(
+        [[1.0, 0.225, 1.5, 0.0], [3.0, -0.225, -1.5, 0.0]])))
+    joined = 0
+    for k in range(14):
+        t = 0.1 * (k + 1)
+        a = np.array([1.0 + 1.5 * t, 0.225]) + rng.normal(0, 0.03, (8, 2))
+        b = np.array([3.0 - 1.5 * t, -0.225]) + rng.normal(0, 0.03, (8, 2))
+        state, est, diag = filter_step(state, np.vstack([a, b]), 0.1, cfg)
+        joined += diag.joined_labels
+    assert joined == 0
+    assert est.label.tolist() == [3, 5]
+    assert est.m[est.label == 3, 0] > 2.5 and est.m[est.label == 5, 0] < 1.5
+
+
+def test_two_parts_farther_apart_than_pair_distance_stay_two():
+    cfg = leg_config(3)
+    rng = np.random.default_rng(9)
+    state = tracked_legs(cfg, (2.0, 0.35), (2.0, -0.35))
+    for k in range(20):
+        state, est, diag = filter_step(
+            state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0), gap=0.7), 0.1, cfg)
+        assert diag.joined_labels == 0
+    assert est.label.tolist() == [3, 5]
