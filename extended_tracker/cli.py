@@ -31,10 +31,12 @@ REAL_TOPICS = {
 
 
 # bags in ../shared/data/real recorded at leg height: replayed with the leg_height preset
+# (obstacle_detector's moving object shows as two leg arcs 0.1-0.5 m apart)
 REAL_PRESETS = {
     'legtracker_demo_stationary_simple_environment': 'leg_height',
     'legtracker_positive_1': 'leg_height',
     'mir_legs_test_stationary': 'leg_height',
+    'obstacle_detector_scans_demo': 'leg_height',
 }
 
 
