@@ -147,7 +147,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,
     ``capped_components``, ``oversized`` (components dropped as too large or too
     uncertain), ``fused_labels`` (labels found to track an object another label
-    tracks), ``relabelled`` (labels given a new id because they jumped farther than
+    tracks), ``joined_labels`` (labels joined into another as parts of one object,
+    ``reduction.pair_scans``), ``relabelled`` (labels given a new id because they jumped farther than
     ``extraction.max_speed`` allows), ``handed_over`` (lost ids passed on to a new
     object where the lost one would be) and ``grouped`` (thin contour pieces reported as
     part of another's object).

@@ -19,9 +19,10 @@ from extended_tracker.reduction import join_parts
 from extended_tracker.tracker import _thin_cardinality, FilterState, filter_step
 
 
-def leg_config(pair_scans):
+def leg_config(pair_scans, mode='cphd'):
     legs = {k: dict(v) for k, v in PRESETS['leg_height'].items()}
     legs['reduction']['pair_scans'] = pair_scans
+    legs['model'] = {'mode': mode}
     return from_dict(legs)
 
 
@@ -126,9 +127,10 @@ def tracked_legs(cfg, left, right):
                    reported_origin=np.array([left, right]), reported_travel=np.zeros(2))
 
 
-@pytest.mark.parametrize('pair_scans', [0, 3])
-def test_two_tracked_legs_of_one_walker_become_one_track(pair_scans):
-    cfg = leg_config(pair_scans)
+@pytest.mark.parametrize('pair_scans,mode', [(0, 'cphd'), (3, 'cphd'), (0, 'phd'),
+                                             (3, 'phd')])
+def test_two_tracked_legs_of_one_walker_become_one_track(pair_scans, mode):
+    cfg = leg_config(pair_scans, mode)
     rng = np.random.default_rng(7)
     state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
     shown, joined = [], 0
@@ -141,7 +143,9 @@ def test_two_tracked_legs_of_one_walker_become_one_track(pair_scans):
         # joined after three scans together, under the label reported longer
         assert joined == 1
         assert all(s == [3] for s in shown[3:])
-        assert int(state.log_card.argmax()) == 1
+        if mode == 'cphd':
+            assert int(state.log_card.argmax()) == 1
+        assert np.add.reduce(state.mixture.w) == pytest.approx(1.0, abs=0.1)
     else:
         # what the leg-height recordings showed: two ids side by side to the end
         assert joined == 0
