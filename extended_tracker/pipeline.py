@@ -148,10 +148,10 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     ``capped_components``, ``oversized`` (components dropped as too large or too
     uncertain), ``fused_labels`` (labels found to track an object another label
     tracks), ``joined_labels`` (labels joined into another as parts of one object,
-    ``reduction.pair_scans``), ``relabelled`` (labels given a new id because they jumped farther than
-    ``extraction.max_speed`` allows), ``handed_over`` (lost ids passed on to a new
-    object where the lost one would be) and ``grouped`` (thin contour pieces reported as
-    part of another's object).
+    ``reduction.pair_scans``), ``relabelled`` (labels given a new id because they jumped
+    farther than ``extraction.max_speed`` allows), ``handed_over`` (lost ids passed on to
+    a new object where the lost one would be) and ``grouped`` (thin contour pieces
+    reported as part of another's object).
     """
     t0 = time.perf_counter()
     try:
