@@ -810,8 +810,9 @@ def _hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerC
     young label within ``extraction.handover_distance`` of a lost label's last shown
     position, carried on at its last shown velocity, takes the lost label (nearest pairs
     first, one to one), unless the speed limit of :func:`_relabel_jumps` would call the
-    move a jump. Established labels never take another's id, so two tracked objects that
-    pass each other keep theirs.
+    move a jump, or the lost label is the newer of the two: an id passes only to a label
+    created after it. Established labels never take another's id, so two tracked objects
+    that pass each other keep theirs.
 
     In the mixture the two labels swap: the young object's components carry the old id
     on, the lost label's fading components carry the young one. The young label's report
@@ -826,7 +827,10 @@ def _hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerC
     Seen at leg height (the leg_tracker demo): a walker tracked on one leg while the other
     is hidden; the other leg steps out 0.3-0.5 m ahead, is split off under a new label,
     and the first leg's track fades when that leg is hidden in turn. Without a handover
-    the walker changes id at every such step.
+    the walker changes id at every such step. On the Freiburg recording two young labels
+    on one walker, just after the background warm-up, traded ids every scan for 26 scans
+    (the one extracted took the id of the other, shown the scan before) until both were
+    older than the window; an id passing only to a newer label ends that.
     """
     window = cfg.extraction.handover_time
     if window <= 0 or not len(old.shown) or not len(est):
@@ -855,7 +859,8 @@ def _hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerC
     d = pos - last
     reach = _speed_reach(ex, elapsed)
     near = ((dist <= ex.handover_distance)
-            & (np.sqrt(np.add.reduce(d * d, axis=2)) <= reach[None, :])).nonzero()
+            & (np.sqrt(np.add.reduce(d * d, axis=2)) <= reach[None, :])
+            & (est.label[young][:, None] > old.shown[lost][None, :])).nonzero()
     if not len(near[0]):
         return new, est, old, 0
     order = dist[near].argsort(kind='stable')

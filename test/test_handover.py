@@ -73,6 +73,25 @@ def test_an_established_label_never_takes_a_lost_id():
     assert n == 1 and out_est.label.tolist() == [5]
 
 
+def test_an_id_passes_only_to_a_newer_label():
+    """
+    Two young labels on one object: each scan the one extracted took the id of the other,
+    shown the scan before, and the report traded ids every scan for as long as both were
+    young (the Freiburg recording, 26 scans in a row after the background warm-up). An
+    id passes only to a label created after it, so the object ends under the older one.
+    """
+    both_young = lost_state([5, 7], [[0.0, 0.0], [0.05, 0.0]], recent_from=5)
+    under_5 = FilterState(mixture([(5, 1.0, 0.02, 0.0), (7, 0.05, 0.05, 0.0)]), np.zeros(1),
+                          dt=0.1)
+    est = estimates([5], [[0.02, 0.0]])
+    out, out_est, _, n = _hand_over(both_young, under_5, est, CFG)
+    assert n == 0 and out is under_5 and out_est is est
+    under_7 = FilterState(mixture([(5, 0.05, 0.0, 0.0), (7, 1.0, 0.02, 0.0)]), np.zeros(1),
+                          dt=0.1)
+    _, out_est, _, n = _hand_over(both_young, under_7, estimates([7], [[0.02, 0.0]]), CFG)
+    assert n == 1 and out_est.label.tolist() == [5]
+
+
 def test_too_far_too_late_or_switched_off_means_no_handover():
     new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.85, 0.0)]), np.zeros(1), dt=0.1)
     est = estimates([9], [[0.85, 0.0]])
