@@ -498,10 +498,14 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                                                  cfg)
     new_state = _record_reports(record, new_state, candidates)
     if cfg.reduction.pair_scans:
-        new_state, candidates, joined = _join_parts(new_state, candidates, cfg)
+        new_state, candidates, joined, forming = _join_parts(new_state, candidates, cfg)
         diag.joined_labels = len(joined)
     # report a label once confirmed (M of N)
     confirmed = new_state.confirmed_rows(cfg.extraction)
+    if cfg.reduction.pair_scans and len(forming):
+        # a part never shown waits while its pair forms
+        confirmed &= ~(_find_sorted(np.sort(forming), candidates.label)[1]
+                       & ~_find_sorted(state.shown, candidates.label)[1])
     shown = candidates.take(confirmed)
     new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time)
     if cfg.reduction.pair_scans and len(joined):
@@ -526,14 +530,17 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
     in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
     heaviest components become one (:func:`join_parts`) under the senior label (reported
     in more scans in a row; then the smaller label) and the other label's components are
-    dropped. The junior label leaves the estimates and the report record, so with
-    ``pair_scans`` at most ``extraction.confirm_scans`` a part born beside its object is
-    joined before it is ever shown. In CPHD mode the cardinality pmf loses the dropped
-    weight (:func:`_thin_cardinality`). The senior's estimate this scan is as extracted;
-    the next scan starts from the joined component.
+    dropped. The junior label leaves the estimates and the report record. The junior of
+    a pair still forming is returned too: a label never shown waits to be shown while
+    its pair forms (:func:`update_state`), so a part born beside its object is joined
+    before it is ever shown, also when the pair forms a scan or two after its birth. In
+    CPHD mode the cardinality pmf loses the dropped weight (:func:`_thin_cardinality`).
+    The senior's estimate this scan is as extracted; the next scan starts from the joined
+    component.
 
     ``state``'s report record must be ``est``'s (:func:`_record_reports`). Returns the
-    state, the estimates and the junior labels (ascending).
+    state, the estimates, the junior labels joined (ascending) and the juniors of the
+    pairs still forming.
 
     Notes
     -----
@@ -547,7 +554,7 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
     made the report change label whenever the stride took the legs apart.
     """
     rc = cfg.reduction
-    joined = np.zeros(0, np.int64)
+    joined = forming = np.zeros(0, np.int64)
     pairs, runs = np.zeros((0, 2), np.int64), joined
     if len(est) > 1:
         semi = np.sqrt(eig2(est.X)[0])
@@ -570,11 +577,15 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
             was = ((state.pairs[:, 0] == a) & (state.pairs[:, 1] == b)).nonzero()[0]
             if len(was):
                 runs[n] += state.pair_runs[was[0]]
+        # senior first in each row: reported in more scans in a row, then the smaller label
+        swap = state.reported_scans[rows[:, 1]] > state.reported_scans[rows[:, 0]]
+        rows[swap] = rows[swap][:, ::-1]
         ready = runs >= rc.pair_scans
+        forming = est.label[rows[~ready, 1]]
         if np.logical_or.reduce(ready):
             state, est, joined = _join(state, est, rows[ready], cfg)
             pairs, runs = pairs[~ready], runs[~ready]
-    return evolve(state, pairs=pairs, pair_runs=runs), est, joined
+    return evolve(state, pairs=pairs, pair_runs=runs), est, joined, forming
 
 
 def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConfig):
@@ -585,10 +596,7 @@ def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConf
     heads = order[is_head]
     drop = np.zeros(len(mix), dtype=bool)
     joined, junior_rows, removed = [], [], 0.0
-    seniority = state.reported_scans
-    for a, b in rows.tolist():
-        if (seniority[b], -est.label[b]) > (seniority[a], -est.label[a]):
-            a, b = b, a
+    for a, b in rows.tolist():                         # the senior first
         at = labels.searchsorted(est.label[[a, b]])
         w = weight[at]
         joined.append(join_parts(mix, heads[at], w, int(est.label[a])))

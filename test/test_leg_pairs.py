@@ -205,3 +205,29 @@ def test_two_parts_farther_apart_than_pair_distance_stay_two():
             state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0), gap=0.7), 0.1, cfg)
         assert diag.joined_labels == 0
     assert est.label.tolist() == [3, 5]
+
+
+def test_a_leg_whose_pair_forms_after_its_birth_is_never_shown():
+    """The second leg is first seen 0.75 m out, beyond pair_distance, then beside the
+    walker: its pair forms a scan or more after its birth, and it would be confirmed
+    before the pair had its three scans. A part never shown waits while its pair forms."""
+    cfg = leg_config(3)
+    rng = np.random.default_rng(11)
+    state = tracked_legs(cfg, (2.0, 0.0), (2.0, -0.35))
+    log_card = np.full(cfg.model.n_max + 1, -np.inf)
+    log_card[1] = 0.0
+    state = replace(state, mixture=state.mixture.take(np.array([0])), log_card=log_card,
+                    reported=np.array([3]), reported_scans=np.array([40]),
+                    reported_hits=np.array([40]), reported_origin=np.array([[2.0, 0.0]]),
+                    reported_travel=np.zeros(1))
+    seen, joined = set(), 0
+    for k in range(20):
+        t = 0.1 * (k + 1)
+        pts = [np.array([2.0 + t, 0.0]) + rng.normal(0, 0.03, (8, 2))]
+        if k >= 5:
+            gap = 0.75 if k == 5 else 0.4
+            pts.append(np.array([2.0 + t, -gap]) + rng.normal(0, 0.03, (8, 2)))
+        state, est, diag = filter_step(state, np.vstack(pts), 0.1, cfg)
+        seen.update(est.label.tolist())
+        joined += diag.joined_labels
+    assert joined == 1 and seen == {3}
