@@ -25,6 +25,7 @@ from .partition import build_partitions, find_root, union_min
 from .reduction import join_parts, reduce_mixture
 
 NEG_INF = -np.inf
+NO_LABELS = read_only(np.zeros(0, np.int64))[0]
 # a thin contour piece (see group_segments): semi-minor axis at most this, semi-major at least
 SEGMENT_MAX_SEMI_MINOR = 0.15        # m
 SEGMENT_MIN_SEMI_MAJOR = 0.5         # m
@@ -497,18 +498,18 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     new_state, candidates, record, diag.handed_over = _hand_over(state, new_state, candidates,
                                                                  cfg)
     new_state = _record_reports(record, new_state, candidates)
+    joined = forming = NO_LABELS
     if cfg.reduction.pair_scans:
         new_state, candidates, joined, forming = _join_parts(new_state, candidates, cfg)
         diag.joined_labels = len(joined)
-    # report a label once confirmed (M of N)
+    # report a label once confirmed (M of N); a part never shown waits while its pair forms
     confirmed = new_state.confirmed_rows(cfg.extraction)
-    if cfg.reduction.pair_scans and len(forming):
-        # a part never shown waits while its pair forms
+    if len(forming):
         confirmed &= ~(_find_sorted(np.sort(forming), candidates.label)[1]
                        & ~_find_sorted(state.shown, candidates.label)[1])
     shown = candidates.take(confirmed)
     new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time)
-    if cfg.reduction.pair_scans and len(joined):
+    if len(joined):
         new_state = _forget_shown(new_state, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
@@ -554,8 +555,8 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
     made the report change label whenever the stride took the legs apart.
     """
     rc = cfg.reduction
-    joined = forming = np.zeros(0, np.int64)
-    pairs, runs = np.zeros((0, 2), np.int64), joined
+    joined = forming = NO_LABELS
+    pairs, runs = np.zeros((0, 2), np.int64), NO_LABELS
     if len(est) > 1:
         semi = np.sqrt(eig2(est.X)[0])
         i, j = np.triu_indices(len(est), 1)
