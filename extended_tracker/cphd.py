@@ -479,6 +479,29 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     return out - lse1(out)
 
 
+def thin_cardinality(log_card: np.ndarray, removed: float) -> np.ndarray:
+    """
+    The cardinality pmf after ``removed`` expected objects are taken away: whole objects
+    one at a time, the last with the fractional remainder as its probability
+    (``p'(n) = (1 - f) p(n) + f p(n + 1)``, ``p'(0)`` also gaining ``f p(1)``). Used when
+    two tracks are found to be one object (``tracker._join_parts``).
+
+    Each step is a convex combination of neighbouring entries, so it runs on the pmf
+    scaled by its largest entry: nothing that matters underflows.
+    """
+    p = np.exp(log_card - log_card.max())
+    p /= p.sum()
+    while removed > 1e-12:
+        f = min(removed, 1.0)
+        q = (1.0 - f) * p
+        q[:-1] += f * p[1:]
+        q[0] += f * p[0]                           # nothing to take from none
+        p = q
+        removed -= f
+    with np.errstate(divide='ignore'):
+        return np.log(p)
+
+
 def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
     """
     A cardinality pmf (log) carried over to ``0..n_max`` when ``N_max`` changes while the

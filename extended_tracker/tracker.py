@@ -15,7 +15,10 @@ import numpy as np
 
 
 from .config import ExtractionConfig, TrackerConfig
-from .cphd import cphd_update, phd_update, poisson_log_pmf, predict_cardinality, resize_cardinality
+from .cphd import (
+    cphd_update, phd_update, poisson_log_pmf, predict_cardinality, resize_cardinality,
+    thin_cardinality,
+)
 from .ggiw import (
     cell_stats, eig2, einsum, gate_covariance, gate_pairs, group_heads, inv2, IW_OFFSET,
     log_miss_factor, Mixture, predict, update_pairs, weight_key,
@@ -535,7 +538,7 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
     a pair still forming is returned too: a label never shown waits to be shown while
     its pair forms (:func:`update_state`), so a part born beside its object is joined
     before it is ever shown, also when the pair forms a scan or two after its birth. In
-    CPHD mode the cardinality pmf loses the dropped weight (:func:`_thin_cardinality`).
+    CPHD mode the cardinality pmf loses the dropped weight (:func:`cphd.thin_cardinality`).
     The senior's estimate this scan is as extracted; the next scan starts from the joined
     component.
 
@@ -606,7 +609,7 @@ def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConf
         removed += float(w.sum() - w.max())
     log_card = state.log_card
     if cfg.model.mode == 'cphd':
-        log_card = _thin_cardinality(log_card, removed)
+        log_card = thin_cardinality(log_card, removed)
     keep = np.ones(len(est), dtype=bool)
     keep[junior_rows] = False
     state = evolve(state, mixture=Mixture.concat([mix.take(~drop)] + joined),
@@ -624,25 +627,6 @@ def _forget_shown(state: FilterState, labels: np.ndarray) -> FilterState:
     keep = ~_find_sorted(labels, state.shown)[1]
     return evolve(state, shown=state.shown[keep], shown_pos=state.shown_pos[keep],
                   shown_vel=state.shown_vel[keep], shown_elapsed=state.shown_elapsed[keep])
-
-
-def _thin_cardinality(log_card: np.ndarray, removed: float) -> np.ndarray:
-    """
-    The cardinality pmf after ``removed`` expected objects are taken away: whole objects
-    one at a time, the last with the fractional remainder as its probability
-    (``p'(n) = (1 - f) p(n) + f p(n + 1)``, ``p'(0)`` also gaining ``f p(1)``).
-    """
-    p = np.exp(log_card - log_card.max())
-    p /= p.sum()
-    while removed > 1e-12:
-        f = min(removed, 1.0)
-        q = (1.0 - f) * p
-        q[:-1] += f * p[1:]
-        q[0] += f * p[0]                           # nothing to take from none
-        p = q
-        removed -= f
-    with np.errstate(divide='ignore'):
-        return np.log(p)
 
 
 def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):

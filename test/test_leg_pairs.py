@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict, PRESETS
+from extended_tracker.cphd import thin_cardinality
 from extended_tracker.ggiw import IW_OFFSET, Mixture
 from extended_tracker.reduction import join_parts
-from extended_tracker.tracker import _thin_cardinality, FilterState, filter_step
+from extended_tracker.tracker import FilterState, filter_step
 
 
 def leg_config(pair_scans, mode='cphd'):
@@ -85,7 +86,7 @@ def enumerated_thinning(p, removed):
 def test_thinning_the_cardinality_matches_enumeration(removed):
     rng = np.random.default_rng(int(removed * 100))
     p = rng.dirichlet(np.ones(9))
-    got = np.exp(_thin_cardinality(np.log(p), removed))
+    got = np.exp(thin_cardinality(np.log(p), removed))
     assert np.allclose(got, enumerated_thinning(p, removed), atol=1e-14, rtol=1e-12)
     assert got.sum() == pytest.approx(1.0, abs=1e-14)
     # far from the empty scene the mean falls by exactly what was taken away
@@ -93,7 +94,7 @@ def test_thinning_the_cardinality_matches_enumeration(removed):
     far[6:9] = [0.2, 0.5, 0.3]
     with np.errstate(divide='ignore'):
         log_far = np.log(far)
-    mean = np.arange(12) @ np.exp(_thin_cardinality(log_far, removed))
+    mean = np.arange(12) @ np.exp(thin_cardinality(log_far, removed))
     assert mean == pytest.approx(np.arange(12) @ far - removed, abs=1e-12)
 
 
