@@ -511,9 +511,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         confirmed &= ~(_find_sorted(np.sort(forming), candidates.label)[1]
                        & ~_find_sorted(state.shown, candidates.label)[1])
     shown = candidates.take(confirmed)
-    new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time)
-    if len(joined):
-        new_state = _forget_shown(new_state, joined)
+    new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
     shown, diag.grouped = group_segments(shown, new_state.reported_scans[confirmed],
@@ -534,12 +532,13 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
     in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
     heaviest components become one (:func:`join_parts`) under the senior label (reported
     in more scans in a row; then the smaller label) and the other label's components are
-    dropped. The junior label leaves the estimates and the report record. The junior of
-    a pair still forming is returned too: a label never shown waits to be shown while
-    its pair forms (:func:`update_state`), so a part born beside its object is joined
-    before it is ever shown, also when the pair forms a scan or two after its birth. In
-    CPHD mode the cardinality pmf loses the dropped weight (:func:`cphd.thin_cardinality`).
-    The senior's estimate this scan is as extracted; the next scan starts from the joined
+    dropped. The junior label leaves the estimates, the report record and (in
+    :func:`_remember_shown`) the shown record. The junior of a pair still forming is
+    returned too: a label never shown waits to be shown while its pair forms
+    (:func:`update_state`), so a part born beside its object is joined before it is ever
+    shown, also when the pair forms a scan or two after its birth. In CPHD mode the
+    cardinality pmf loses the dropped weight (:func:`cphd.thin_cardinality`). The
+    senior's estimate this scan is as extracted; the next scan starts from the joined
     component.
 
     ``state``'s report record must be ``est``'s (:func:`_record_reports`). Returns the
@@ -619,14 +618,6 @@ def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConf
                    reported_travel=state.reported_travel[keep],
                    reported_hits=state.reported_hits[keep])
     return state, est.take(keep), np.sort(est.label[~keep])
-
-
-def _forget_shown(state: FilterState, labels: np.ndarray) -> FilterState:
-    """``state`` without ``labels`` (ascending) in its shown record: they are not lost, so
-    no new object takes their ids over (:func:`_hand_over`)."""
-    keep = ~_find_sorted(labels, state.shown)[1]
-    return evolve(state, shown=state.shown[keep], shown_pos=state.shown_pos[keep],
-                  shown_vel=state.shown_vel[keep], shown_elapsed=state.shown_elapsed[keep])
 
 
 def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):
@@ -772,17 +763,20 @@ def _speed_reach(ex, t):
 
 
 def _remember_shown(old: FilterState, new: FilterState, shown: Estimates,
-                    handover_time: float = 0.0) -> FilterState:
+                    handover_time: float = 0.0, joined=NO_LABELS) -> FilterState:
     """
     Where, at what velocity and how long ago each label was last shown: labels still in
     the mixture, and those shown less than ``handover_time`` ago (they may be handed
-    over, see :func:`_hand_over`). Also the label counter of the last
-    ``handover_time`` seconds.
+    over, see :func:`_hand_over`), but not the ``joined`` labels (ascending): they are
+    part of another object now, not lost (:func:`_join_parts`). Also the label counter
+    of the last ``handover_time`` seconds.
     """
     alive = new.mixture.per_label()[0]                 # ascending, cached by extract
     elapsed = old.shown_elapsed + new.dt
     keep = ((_find_sorted(alive, old.shown)[1] | (elapsed <= handover_time))
             & ~_find_sorted(shown.label, old.shown)[1])
+    if len(joined):
+        keep &= ~_find_sorted(joined, old.shown)[1]
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
