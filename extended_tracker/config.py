@@ -205,8 +205,8 @@ class BackgroundConfig:
     track_gate: float = _f(0.5, 'returns this close to a confirmed track are never background',
                            'm', 0.0, 10.0)
     moved_distance: float = _f(0.5, 'a track must have moved this far while seen to protect '
-                               'its returns where nothing was in range before (open space)',
-                               'm', 0.0, 100.0)
+                               'its returns where nothing was in range before (open space) '
+                               'or behind the known background', 'm', 0.0, 100.0)
     protect_semi_axis: float = _f(0.6, 'only tracks this small (semi-major) protect returns: '
                                   'people, not walls', 'm', 0.0, 100.0)
 

@@ -32,12 +32,15 @@ import time
 import numpy as np
 
 from .config import TrackerConfig
+from .cphd import thin_cardinality
 from .errors import ScanError
+from .ggiw import gate_covariance, inv2, quad_form2
 from .memo import evolve
 from .sensing.background import BackgroundState, protected_beams, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability
-from .tracker import Estimates, FilterState, predict_state, StepDiagnostics, update_state
+from .tracker import (Estimates, FilterState, gate_threshold, predict_state, sensor_noise,
+                      StepDiagnostics, update_state)
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame')
 
@@ -102,13 +105,31 @@ class StepResult:
 # the filter's own counts, copied from its StepDiagnostics (detections are counted here)
 _FILTER_DIAG = tuple(f.name for f in fields(StepDiagnostics) if f.name != 'detections')
 _DIAG = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
-         **dict.fromkeys(_FILTER_DIAG, 0),
+         'absorbed': 0, **dict.fromkeys(_FILTER_DIAG, 0),
          'beams': 0, **{f'masked_{k}': 0 for k in INVALID_KINDS}}
 _MASKED_KEY = {k: f'masked_{k}' for k in INVALID_KINDS}
 
 
 def _diag_template():
     return dict(_DIAG)
+
+
+def _absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) -> np.ndarray:
+    """
+    The components that gate (``ggiw.gate_pairs``' gate) one of the ``learned`` returns
+    and none of the foreground ``points``: the object they track has just been learned as
+    background.
+    """
+    gi = inv2(gate_covariance(mix, cfg.model.rho, sensor_noise(cfg)))
+    threshold = gate_threshold(cfg)
+
+    def gated(z):
+        if not len(z):
+            return np.zeros(len(mix), dtype=bool)
+        d2 = quad_form2(z[None, :, :] - mix.m[:, None, :2], gi[:, None])
+        return np.logical_or.reduce(d2 < threshold, axis=1)
+
+    return gated(learned) & ~gated(points)
 
 
 def _card_of(state: PipelineState):
@@ -143,7 +164,10 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
 
     Returns the new state and a :class:`StepResult`; never raises on bad sensor data.
     ``result.diagnostics`` holds: ``beams``, ``masked_<kind>`` for each invalid-beam kind,
-    ``detections`` (valid returns), ``background_dropped``, ``partitions``, ``cells``,
+    ``detections`` (valid returns), ``background_dropped``, ``warmup`` (1 while the
+    background warm-up runs), ``left_view`` (components dropped as out of the field of
+    view), ``absorbed`` (components dropped because the returns they stood on were just
+    learned as background), ``partitions``, ``cells``,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,
     ``capped_components``, ``oversized`` (components dropped as too large or too
     uncertain), ``fused_labels`` (labels found to track an object another label
@@ -198,6 +222,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     # background: drop static returns, never those near confirmed tracks
     points = sp.points
     bg_points = np.zeros((0, 2))
+    learned = bg_points                    # returns whose beams were learned this scan
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates
         bgc = cfg.background
@@ -209,6 +234,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
                                           travel[guard] >= bgc.moved_distance)
         background, keep = update_background(background, sp, dt, bgc, prot, prot_free)
         bg_points = points[~keep]
+        learned = points[background.learned[sp.beam]]
         points = points[keep]
         diag['background_dropped'] = len(keep) - int(np.count_nonzero(keep))
         if state.elapsed + dt <= cfg.background.warmup:
@@ -219,6 +245,16 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
             points = np.zeros((0, 2))
 
     pred = predict_state(filt, dt, cfg)
+    if len(learned) and len(pred.mixture) and not diag['warmup']:
+        # tracks that stood on returns just learned as background, with no foreground
+        # return left: dropped, not left to coast onto a neighbour's returns (the region
+        # births of this scan stay), and their weight taken from the cardinality
+        mix = pred.mixture
+        on_bg = _absorbed(mix, learned, points, cfg) & (mix.label < filt.next_label)
+        if np.logical_or.reduce(on_bg):
+            pred = evolve(pred, mixture=mix.take(~on_bg),
+                          log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
+            diag['absorbed'] = int(np.count_nonzero(on_bg))
     vis = detection_model(pred.mixture, sp, cfg)
     if vis.outside is not None and np.logical_or.reduce(vis.outside):
         # objects that left the field of view or range can never be seen again here:

@@ -175,3 +175,52 @@ def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_tr
         tracked.append(bool(np.any(d < 0.5)))
     assert any(tracked[20:60])                             # it was tracked for a while
     assert not any(tracked[80:]), [k for k, t in enumerate(tracked) if t]
+
+
+def test_a_track_holds_a_return_behind_the_background_only_if_it_has_moved():
+    """
+    A beam whose known background (2 m) has left returns 4 m for 3 s: near a confirmed
+    track that never moved (what stood there revealed a static object, now tracked), the
+    4 m return is learned after confirm_time, in the scan that completes it; near a track
+    that moved (a person), it is kept. In front of the background both hold it.
+    """
+    cfg = from_dict({}).background                      # confirm_time 1 s, forget 30 s
+    yes, no = np.ones(3, bool), np.zeros(3, bool)
+    behind = [2.0] * 12 + [4.0] * 30
+    state, keep = _empty_then(behind[:12 + 10], cfg, protected=yes, protected_free=no)
+    assert keep.all() and not state.learned.any() and np.allclose(state.background, 2.0)
+    state, keep = _empty_then(behind[:12 + 11], cfg, protected=yes, protected_free=no)
+    assert not keep.any() and state.learned.all() and np.allclose(state.background, 4.0)
+    state, keep = _empty_then(behind, cfg, protected=yes, protected_free=no)
+    assert not keep.any() and not state.learned.any()   # learned once, then background
+    state, keep = _empty_then(behind, cfg, protected=yes, protected_free=yes)
+    assert keep.all() and np.allclose(state.background, 2.0)
+    # in front of the background (1 m for 3 s, within forget_time): held by either
+    for moved in (no, yes):
+        state, keep = _empty_then([2.0] * 12 + [1.0] * 30, cfg, yes, moved)
+        assert keep.all() and np.allclose(state.background, 2.0)
+    # and without a track the 4 m return is learned just the same
+    state, keep = _empty_then(behind, cfg, protected=no, protected_free=no)
+    assert not keep.any() and np.allclose(state.background, 4.0)
+
+
+def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dropped():
+    """
+    Something stands 1.5 m away at start-up and is learned; it leaves at 4 s and reveals a
+    box 3.5 m away (the MiR recording's furniture behind what stood by the robot). The box
+    is tracked as a new static object, then learned as background about confirm_time
+    after it appeared; its track is dropped in that scan (``absorbed``) instead of
+    coasting, and nothing is reported from 6.5 s on.
+    """
+    wall = (((8.0, -5.0), (8.0, 5.0)),)
+    chair = SimObject((1.5, 0.0), a=0.3, b=0.3, kind='chair', t_end=4.0)
+    box = SimObject((3.5, 0.0), a=0.3, b=0.3, kind='box')
+    hist = run(Scene((chair, box), walls=wall, laser=LaserSpec()), 9.0, from_dict({}), seed=5)
+    shown = [k for k, (_, res) in enumerate(hist)
+             if len(res.estimates) and np.linalg.norm(res.estimates.m[:, :2] - (3.5, 0.0),
+                                                      axis=1).min() < 0.5]
+    assert shown and 40 <= shown[0] < 50              # tracked once revealed
+    absorbed = [k for k, (_, res) in enumerate(hist) if res.diagnostics['absorbed']]
+    assert absorbed and shown[-1] < absorbed[0] < 65    # not reported once learned
+    assert all(len(res.estimates) == 0 for _, res in hist[65:]), \
+        [len(res.estimates) for _, res in hist[40:]]

@@ -51,11 +51,12 @@ def _replay(name, scans):
 @pytest.mark.skipif(not (REAL / MIR).is_dir(), reason='no ../shared/data/real beside the clone')
 def test_a_real_replay_is_the_same_on_another_cpu(monkeypatch):
     """
-    The MiR recording's first 480 scans, replayed as another CPU would compute them,
-    give the same ids and tracks. (At scan 427 a label holds two components of exactly
-    that kind of tie, 8 cm apart; broken by the last bit, the label's report moved 0.8 m
-    and an id changed at scan 435.)
+    The MiR recording, replayed as another CPU would compute it, gives the same ids and
+    tracks. (Until the furniture there was learned as background, scan 427 held a label
+    with two components of exactly that kind of tie, 8 cm apart; broken by the last bit,
+    the label's report moved 0.8 m and an id changed at scan 435. The replay no longer
+    meets that tie; the test above pins it.)
     """
-    plain = _replay(MIR, 480)
+    plain = _replay(MIR, 737)
     other_cpu(monkeypatch)
-    assert_same_tracks(plain, _replay(MIR, 480), 1e-6, least=1001)
+    assert_same_tracks(plain, _replay(MIR, 737), 1e-6, least=800)

@@ -18,7 +18,15 @@ the same range:
 Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed and
 person-sized: the caller decides) and in front of a known background are never dropped and
 never learned from, so a person who walks in and stops stays tracked however long they
-stand. A beam that has returned nothing for ``confirm_time`` while its background was
+stand. A return *behind* the known background is held only by a track that has moved
+``moved_distance`` while seen (a person): a track on a static object cannot keep the
+background behind it from being learned (on the MiR recording something 0.85 m from the
+scanner at start-up was learned, then left, and the furniture it had hidden was tracked
+and kept itself from being learned for the whole run). A return that completes
+its beam's confirmation is background in that same scan; ``learned`` marks those beams,
+so that the caller can drop the tracks that stood on them.
+
+A beam that has returned nothing for ``confirm_time`` while its background was
 unknown is *free* (open space, or nothing within range). A free beam is protected only by
 a track that has also moved ``moved_distance`` while seen (``protected_free``): a person
 who stops in open space stays tracked, while something that flickers at the edge of range
@@ -52,12 +60,14 @@ class BackgroundState:
     candidate_age: np.ndarray
     empty_age: np.ndarray             # time a beam of unknown background returned nothing
     free: np.ndarray                  # seen empty for confirm_time (bool)
+    learned: np.ndarray               # became background in the last update (bool)
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
         b = len(scan.angles)
         return BackgroundState(scan.angles.copy(), np.full(b, np.nan), np.full(b, np.nan),
-                               np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool))
+                               np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool),
+                               np.zeros(b, dtype=bool))
 
     def matches(self, scan: ScanPoints) -> bool:
         return (len(self.angles) == len(scan.angles)
@@ -95,11 +105,11 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         Time since the previous scan (s), ``>= 0``.
     cfg : BackgroundConfig
     protected : (B,) bool array
-        Beams near confirmed tracks: kept and not learned from where the background is
-        known.
+        Beams near confirmed tracks: kept and not learned from where the return lies in
+        front of a known background.
     protected_free : (B,) bool array, optional
         Beams near confirmed tracks that moved: kept and not learned from where the beam
-        was seen free (default: none).
+        was seen free, or where its return lies behind a known background (default: none).
 
     """
     if state is None or not state.matches(scan):
@@ -125,7 +135,10 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         same = seen & np.isfinite(c) & (np.abs(r - c) <= margin)
         if protected_free is None:
             protected_free = np.zeros_like(protected)
-        learn = seen & ~is_bg & ~(protected & known) & ~(protected_free & free & ~known)
+        # protecting tracks hold returns in front of the background; behind it, only
+        # tracks that moved (a return there is what an object that moved away revealed)
+        held = protected & known & ((r < b) | protected_free)
+        learn = seen & ~is_bg & ~held & ~(protected_free & free & ~known)
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
         age = np.where(learn, np.where(same, age + dt, 0.0), age)
         c = np.where(learn, np.where(same, c + gain * (r - c), r), c)
@@ -135,5 +148,5 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         promote = learn & ((farther & ripe) | (nearer & (age >= cfg.forget_time - 1e-6)))
         b = np.where(promote, c, b)
         age = np.where(promote, 0.0, age)
-    keep = ~is_bg[scan.beam]
-    return BackgroundState(state.angles, b, c, age, empty, free), keep
+    keep = ~(is_bg | promote)[scan.beam]
+    return BackgroundState(state.angles, b, c, age, empty, free, promote), keep
