@@ -202,11 +202,12 @@ class BackgroundConfig:
                              's', 0.0, 1e4)
     warmup: float = _f(1.5, 'after start-up only learn the background this long',
                        's', 0.0, 1e4)
-    track_gate: float = _f(0.5, 'returns this close to a confirmed track are never background',
+    track_gate: float = _f(0.5, 'returns this close to a protecting track are never learned',
                            'm', 0.0, 10.0)
-    moved_distance: float = _f(0.5, 'a track must have moved this far while seen to protect '
-                               'its returns where nothing was in range before (open space) '
-                               'or behind the known background', 'm', 0.0, 100.0)
+    moved_distance: float = _f(0.5, 'a confirmed track protects its returns from being '
+                               'learned once it has moved this far while seen (a person; '
+                               'a static object is learned however it is tracked)', 'm',
+                               0.0, 100.0)
     protect_semi_axis: float = _f(0.6, 'only tracks this small (semi-major) protect returns: '
                                   'people, not walls', 'm', 0.0, 100.0)
 

@@ -226,13 +226,12 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates
         bgc = cfg.background
-        # confirmed, person-sized tracks protect; on free beams only those that moved
+        # confirmed, person-sized tracks that have moved protect their returns
         travel = filt.confirmed_travel(est.label, cfg.extraction)
         major = est.axes()[0] if len(est) else np.zeros(0)
-        guard = (travel >= 0.0) & (major <= bgc.protect_semi_axis)
-        prot, prot_free = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate,
-                                          travel[guard] >= bgc.moved_distance)
-        background, keep = update_background(background, sp, dt, bgc, prot, prot_free)
+        guard = (travel >= bgc.moved_distance) & (major <= bgc.protect_semi_axis)
+        prot = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate)
+        background, keep = update_background(background, sp, dt, bgc, prot)
         bg_points = points[~keep]
         learned = points[background.learned[sp.beam]]
         points = points[keep]

@@ -75,33 +75,33 @@ def test_background_learning_unit():
     assert not keep.any()                             # the wall is background now
 
 
-def _empty_then(ranges_per_scan, cfg, protected, protected_free):
+def _empty_then(ranges_per_scan, cfg, protected):
     """Feed one beam's ranges (inf: no return) and return the last state and keep-mask."""
     (scan, _), = simulate(Scene((), laser=LaserSpec(n_beams=3)), 0.1, seed=0)
     state = keep = None
     for r in ranges_per_scan:
         scan.ranges = np.full(3, r, dtype=np.float32)
         sp = scan_to_points(scan)
-        state, keep = update_background(state, sp, 0.1, cfg, protected, protected_free)
+        state, keep = update_background(state, sp, 0.1, cfg, protected)
     return state, keep
 
 
-def test_beam_seen_empty_is_free_and_protection_there_needs_a_moved_track():
+def test_beam_seen_empty_is_free_and_a_protecting_track_holds_it():
     cfg = from_dict({}).background                      # confirm_time 1 s
     yes, no = np.ones(3, bool), np.zeros(3, bool)
     # 1.2 s with nothing in range, then something stands there for 3 s
     ranges = [np.inf] * 12 + [4.0] * 30
-    state, keep = _empty_then(ranges, cfg, protected=yes, protected_free=yes)
+    state, keep = _empty_then(ranges, cfg, protected=yes)
     assert state.free.all() and np.isnan(state.background).all()
-    assert keep.all()                                   # a moved track there: never learned
-    # the same, near a confirmed track that has not moved: learned after confirm_time
-    state, keep = _empty_then(ranges, cfg, protected=yes, protected_free=no)
+    assert keep.all()                                   # a protecting track: never learned
+    # no protecting track (a track that never moved is none): learned after confirm_time
+    state, keep = _empty_then(ranges, cfg, protected=no)
     assert not keep.any() and np.allclose(state.background, 4.0)
     # never seen empty (0.5 s of nothing is not enough): tracks protect nothing there
-    state, keep = _empty_then([np.inf] * 5 + [4.0] * 30, cfg, yes, yes)
+    state, keep = _empty_then([np.inf] * 5 + [4.0] * 30, cfg, yes)
     assert not state.free.any() and not keep.any()
     # a beam with a known background never becomes free, however long it returns nothing
-    state, _ = _empty_then([4.0] * 12 + [np.inf] * 30, cfg, no, no)
+    state, _ = _empty_then([4.0] * 12 + [np.inf] * 30, cfg, no)
     assert not state.free.any() and np.allclose(state.background, 4.0)
 
 
@@ -177,31 +177,53 @@ def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_tr
     assert not any(tracked[80:]), [k for k, t in enumerate(tracked) if t]
 
 
-def test_a_track_holds_a_return_behind_the_background_only_if_it_has_moved():
+def test_known_background_a_protecting_track_holds_returns_in_front_and_behind():
     """
-    A beam whose known background (2 m) has left returns 4 m for 3 s: near a confirmed
-    track that never moved (what stood there revealed a static object, now tracked), the
-    4 m return is learned after confirm_time, in the scan that completes it; near a track
-    that moved (a person), it is kept. In front of the background both hold it.
+    A beam whose known background (2 m) has left returns 4 m for 3 s: learned after
+    confirm_time, in the scan that completes it, unless a protecting track holds it; a
+    nearer return (1 m for 3 s, nothing else in between) waits for forget_time either way.
     """
     cfg = from_dict({}).background                      # confirm_time 1 s, forget 30 s
     yes, no = np.ones(3, bool), np.zeros(3, bool)
     behind = [2.0] * 12 + [4.0] * 30
-    state, keep = _empty_then(behind[:12 + 10], cfg, protected=yes, protected_free=no)
+    state, keep = _empty_then(behind[:12 + 10], cfg, protected=no)
     assert keep.all() and not state.learned.any() and np.allclose(state.background, 2.0)
-    state, keep = _empty_then(behind[:12 + 11], cfg, protected=yes, protected_free=no)
+    state, keep = _empty_then(behind[:12 + 11], cfg, protected=no)
     assert not keep.any() and state.learned.all() and np.allclose(state.background, 4.0)
-    state, keep = _empty_then(behind, cfg, protected=yes, protected_free=no)
+    state, keep = _empty_then(behind, cfg, protected=no)
     assert not keep.any() and not state.learned.any()   # learned once, then background
-    state, keep = _empty_then(behind, cfg, protected=yes, protected_free=yes)
+    state, keep = _empty_then(behind, cfg, protected=yes)
     assert keep.all() and np.allclose(state.background, 2.0)
-    # in front of the background (1 m for 3 s, within forget_time): held by either
-    for moved in (no, yes):
-        state, keep = _empty_then([2.0] * 12 + [1.0] * 30, cfg, yes, moved)
+    for prot in (no, yes):
+        state, keep = _empty_then([2.0] * 12 + [1.0] * 30, cfg, prot)
         assert keep.all() and np.allclose(state.background, 2.0)
-    # and without a track the 4 m return is learned just the same
-    state, keep = _empty_then(behind, cfg, protected=no, protected_free=no)
-    assert not keep.any() and np.allclose(state.background, 4.0)
+        assert np.isnan(state.second).all()
+
+
+def test_thin_object_seen_in_some_scans_becomes_a_second_background_range():
+    """
+    A post that the beam hits in every other scan, the wall (4 m) returned in between:
+    once the post's returns add up to confirm_time (11 of them: the first starts the
+    count at 0, each later one adds a scan period) its range is a second background
+    range and both are dropped. Not seen for forget_time, it is
+    forgotten. Something that blocks the wall in every scan (a person standing) is not
+    such a post: it waits for forget_time.
+    """
+    cfg = from_dict({'background': {'forget_time': 5.0}}).background
+    no = np.zeros(3, bool)
+    post = [4.0] * 12 + [1.0, 4.0] * 10 + [1.0]         # the post's 11th return last
+    state, keep = _empty_then(post[:-2], cfg, no)      # the 10th: still foreground
+    assert keep.all() and np.isnan(state.second).all()
+    state, keep = _empty_then(post, cfg, no)
+    assert not keep.any() and state.learned.all()
+    assert np.allclose(state.second, 1.0) and np.allclose(state.background, 4.0)
+    state, keep = _empty_then(post + [4.0, 1.0], cfg, no)
+    assert not keep.any() and not state.learned.any()  # both ranges are background
+    state, keep = _empty_then(post + [4.0] * 51 + [1.0], cfg, no)
+    assert keep.all() and np.isnan(state.second).all()  # forgotten after 5 s unseen
+    # blocking the wall in every scan for 3 s: not learned (forget_time is 5 s)
+    state, keep = _empty_then([4.0] * 12 + [1.0] * 30, cfg, no)
+    assert keep.all() and np.isnan(state.second).all()
 
 
 def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dropped():
@@ -224,3 +246,29 @@ def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dr
     assert absorbed and shown[-1] < absorbed[0] < 65    # not reported once learned
     assert all(len(res.estimates) == 0 for _, res in hist[65:]), \
         [len(res.estimates) for _, res in hist[40:]]
+
+
+def test_static_object_in_front_of_the_wall_is_learned_after_forget_time_though_tracked():
+    """
+    A box put down 4 m away in front of the wall at 3 s is tracked, and learned as
+    background once its returns add up to forget_time (3 s here): a track that never
+    moved protects nothing (a chair moved in). The person who walks in and stops for
+    6 s in front of the same wall is held by its moving track and stays tracked.
+    """
+    wall = (((8.0, -5.0), (8.0, 5.0)),)
+    cfg = from_dict({'background': {'forget_time': 3.0}})
+    box = SimObject((4.0, 1.0), a=0.3, b=0.3, kind='box', t_start=3.0)
+    hist = run(Scene((box,), walls=wall, laser=LaserSpec()), 9.0, cfg, seed=7)
+    counts = [len(res.estimates) for _, res in hist]
+    assert all(n == 1 for n in counts[36:60]), counts          # tracked meanwhile
+    assert all(n == 0 for n in counts[66:]), counts            # learned by 6.6 s
+    assert any(res.diagnostics['absorbed'] for _, res in hist[60:66])
+    person = SimObject((6.0, 3.0), (-0.5, -0.5), t_start=2.0, stops=((4.0, 10.0),))
+    hist = run(Scene((person,), walls=wall, laser=LaserSpec()), 11.0, cfg, seed=8)
+    labels = set()
+    for k, (truth, res) in enumerate(hist[30:105], start=30):
+        (p,) = truth
+        assert len(res.estimates) == 1, (k, res.estimates.m[:, :2])
+        assert np.linalg.norm(res.estimates.m[0, :2] - p.centre) < 0.3, k
+        labels.add(int(res.estimates.label[0]))
+    assert len(labels) == 1

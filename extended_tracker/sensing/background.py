@@ -15,22 +15,27 @@ the same range:
 - a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
   it only after ``forget_time``, so people pausing briefly are not learned.
 
-Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed and
-person-sized: the caller decides) and in front of a known background are never dropped and
-never learned from, so a person who walks in and stops stays tracked however long they
-stand. A return *behind* the known background is held only by a track that has moved
-``moved_distance`` while seen (a person): a track on a static object cannot keep the
-background behind it from being learned (on the MiR recording something 0.85 m from the
-scanner at start-up was learned, then left, and the furniture it had hidden was tracked
-and kept itself from being learned for the whole run). A return that completes
-its beam's confirmation is background in that same scan; ``learned`` marks those beams,
-so that the caller can drop the tracks that stood on them.
+A beam that keeps returning its background between returns at one nearer range (a thin
+post or a table leg that the beam hits in some scans only) learns that range as a
+*second* background range once its returns there add up to ``confirm_time``; a second
+range not seen for ``forget_time`` is forgotten. A candidate's age does not restart on a
+background return, so only the returns that are not background count.
 
-A beam that has returned nothing for ``confirm_time`` while its background was
-unknown is *free* (open space, or nothing within range). A free beam is protected only by
-a track that has also moved ``moved_distance`` while seen (``protected_free``): a person
-who stops in open space stays tracked, while something that flickers at the edge of range
-and gets tracked where it stands is still learned. Where the background is unknown and the
+Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
+person-sized and moved ``moved_distance`` while seen: the caller decides) are never
+learned from where the background is known or the beam was seen free, so a person who
+walks in and stops stays tracked however long they stand, in front of a wall or of open
+space. A track that never moved protects nothing: a static object is learned like any
+other (after ``confirm_time`` behind the known background or where it is unknown,
+``forget_time`` in front of it), however it is tracked meanwhile. (Protected by their own
+static tracks, furniture revealed behind something learned at start-up on the MiR
+recording, a spot on positive_1 and one on the leg_tracker demo were reported for
+hundreds of scans.) A return that completes its beam's confirmation is background in that
+same scan; ``learned`` marks those beams, so that the caller can drop the tracks that
+stood on them.
+
+A beam that has returned nothing for ``confirm_time`` while its background was unknown is
+*free* (open space, or nothing within range). Where the background is unknown and the
 beam was never seen free (a stretch of wall hidden behind a person since start-up), tracks
 protect nothing, so a revealed wall that gets tracked is still learned.
 
@@ -61,13 +66,17 @@ class BackgroundState:
     empty_age: np.ndarray             # time a beam of unknown background returned nothing
     free: np.ndarray                  # seen empty for confirm_time (bool)
     learned: np.ndarray               # became background in the last update (bool)
+    background_ago: np.ndarray        # time since a return matched the background
+    second: np.ndarray                # second background range (NaN: none)
+    second_ago: np.ndarray            # time since a return matched the second range
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
         b = len(scan.angles)
+        never = np.full(b, np.inf)
         return BackgroundState(scan.angles.copy(), np.full(b, np.nan), np.full(b, np.nan),
                                np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool),
-                               np.zeros(b, dtype=bool))
+                               np.zeros(b, dtype=bool), never, np.full(b, np.nan), never)
 
     def matches(self, scan: ScanPoints) -> bool:
         return (len(self.angles) == len(scan.angles)
@@ -75,25 +84,18 @@ class BackgroundState:
 
 
 def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: np.ndarray,
-                    gate: float, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """
-    Beams whose return lies within ``radius + gate`` of a confirmed track centre, and those
-    near a track flagged in ``moved`` (for free beams).
-    """
+                    gate: float) -> np.ndarray:
+    """Beams whose return lies within ``radius + gate`` of one of the track centres."""
     prot = np.zeros(len(scan.angles), dtype=bool)
-    prot_moved = prot.copy()
     if not len(track_centres) or not len(scan.points):
-        return prot, prot_moved
+        return prot
     d = np.linalg.norm(scan.points[:, None, :] - track_centres[None, :, :], axis=2)
-    close = d <= (track_radius + gate)[None, :]
-    prot[scan.beam[np.logical_or.reduce(close, axis=1)]] = True
-    prot_moved[scan.beam[np.logical_or.reduce(close[:, moved], axis=1)]] = True
-    return prot, prot_moved
+    prot[scan.beam[np.logical_or.reduce(d <= (track_radius + gate)[None, :], axis=1)]] = True
+    return prot
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
-                      protected: np.ndarray, protected_free: np.ndarray | None = None
-                      ) -> tuple[BackgroundState, np.ndarray]:
+                      protected: np.ndarray) -> tuple[BackgroundState, np.ndarray]:
     """
     Learn from one scan and return the new state and a keep-mask over ``scan.points``.
 
@@ -105,40 +107,39 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         Time since the previous scan (s), ``>= 0``.
     cfg : BackgroundConfig
     protected : (B,) bool array
-        Beams near confirmed tracks: kept and not learned from where the return lies in
-        front of a known background.
-    protected_free : (B,) bool array, optional
-        Beams near confirmed tracks that moved: kept and not learned from where the beam
-        was seen free, or where its return lies behind a known background (default: none).
+        Beams near protecting tracks (confirmed, person-sized, moved): not learned from
+        where the background is known or the beam was seen free.
 
     """
     if state is None or not state.matches(scan):
         state = BackgroundState.for_scan(scan)
     b = state.background.copy()
+    s2 = state.second.copy()
     c = state.candidate.copy()
     age = state.candidate_age.copy()
     r = scan.ranges                                   # inf where no return
     margin = cfg.margin
     known = np.isfinite(b)
     with np.errstate(invalid='ignore'):
-        is_bg = known & np.isfinite(r) & (np.abs(r - b) <= margin)
+        seen = np.isfinite(r)
+        on_b = known & seen & (np.abs(r - b) <= margin)
+        on_s2 = seen & ~on_b & (np.abs(r - s2) <= margin)         # NaN: never
+        is_bg = on_b | on_s2
         # refine the background where it is seen (exponential smoothing, time constant)
         gain = min(1.0, dt / cfg.learn_time)
-        b = np.where(is_bg, b + gain * (r - b), b)
-        # candidates: a beam returning the same range as before keeps ageing; a beam with
-        # no return (dropout, or nothing in range) tells nothing and changes nothing
-        seen = np.isfinite(r)
+        b = np.where(on_b, b + gain * (r - b), b)
+        s2 = np.where(on_s2, s2 + gain * (r - s2), s2)
+        b_ago = np.where(on_b, 0.0, state.background_ago + dt)
+        s2_ago = np.where(on_s2, 0.0, state.second_ago + dt)
         # free: a beam of unknown background that returned nothing for confirm_time in a
         # row; a later return does not undo it (a person standing there)
         empty = np.where(seen | known, 0.0, state.empty_age + dt)
         free = state.free | (empty >= cfg.confirm_time - 1e-6)
+        # candidates: a beam returning the same range as before keeps ageing; a beam with
+        # no return (dropout, or nothing in range) or a background return tells nothing
+        # and changes nothing
         same = seen & np.isfinite(c) & (np.abs(r - c) <= margin)
-        if protected_free is None:
-            protected_free = np.zeros_like(protected)
-        # protecting tracks hold returns in front of the background; behind it, only
-        # tracks that moved (a return there is what an object that moved away revealed)
-        held = protected & known & ((r < b) | protected_free)
-        learn = seen & ~is_bg & ~held & ~(protected_free & free & ~known)
+        learn = seen & ~is_bg & ~(protected & (known | free))
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
         age = np.where(learn, np.where(same, age + dt, 0.0), age)
         c = np.where(learn, np.where(same, c + gain * (r - c), r), c)
@@ -146,7 +147,14 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         nearer = known & (c < b - margin)
         ripe = age >= cfg.confirm_time - 1e-6
         promote = learn & ((farther & ripe) | (nearer & (age >= cfg.forget_time - 1e-6)))
+        # nearer, ripe, and the background seen lately: a thin object seen in some scans
+        second = learn & nearer & ripe & ~promote & (b_ago <= cfg.confirm_time)
         b = np.where(promote, c, b)
-        age = np.where(promote, 0.0, age)
-    keep = ~(is_bg | promote)[scan.beam]
-    return BackgroundState(state.angles, b, c, age, empty, free, promote), keep
+        b_ago = np.where(promote, 0.0, b_ago)
+        s2 = np.where(second, c, np.where(s2_ago > cfg.forget_time, np.nan, s2))
+        s2_ago = np.where(second, 0.0, s2_ago)
+        learned = promote | second
+        age = np.where(learned, 0.0, age)
+    keep = ~(is_bg | learned)[scan.beam]
+    return BackgroundState(state.angles, b, c, age, empty, free, learned, b_ago, s2,
+                           s2_ago), keep
