@@ -219,7 +219,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         diag[_MASKED_KEY[k]] = v
     diag['detections'] = len(sp.points)
 
-    # background: drop static returns, never those near confirmed tracks
+    # background: drop static returns; never learn those of tracks that have moved
     points = sp.points
     bg_points = np.zeros((0, 2))
     learned = bg_points                    # returns whose beams were learned this scan
