@@ -205,9 +205,9 @@ class BackgroundConfig:
     track_gate: float = _f(0.5, 'returns this close to a protecting track are never learned',
                            'm', 0.0, 10.0)
     moved_distance: float = _f(0.5, 'a confirmed track protects its returns from being '
-                               'learned once it has moved this far while seen (a person; '
-                               'a static object is learned however it is tracked)', 'm',
-                               0.0, 100.0)
+                               'learned once it has moved this far beyond its first extent '
+                               'while seen (a person; a static object is learned however '
+                               'it is tracked)', 'm', 0.0, 100.0)
     protect_semi_axis: float = _f(0.6, 'only tracks this small (semi-major) protect returns: '
                                   'people, not walls', 'm', 0.0, 100.0)
 

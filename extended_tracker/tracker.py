@@ -120,9 +120,10 @@ class FilterState:
         ``reported_hits`` how many of those returns updated it in (its birth scan
         included; a label split off another's far component counts from its next scan,
         the returns of the split scan having updated the other label),
-        ``reported_origin`` (r, 2) is where each was first reported and
-        ``reported_travel`` (r,) the farthest it has been from there in a scan where returns
-        updated it (m; coasting drift does not count).
+        ``reported_origin`` (r, 2) is where each was first reported, ``reported_size``
+        (r,) its semi-major axis then, and ``reported_travel`` (r,) the farthest it has
+        been from there in a scan where returns updated it (m; coasting drift does not
+        count).
     shown : (s,) int64 array
         Labels ever reported (shown to the user) that are still in the mixture or were
         shown less than ``extraction.handover_time`` ago, ascending; ``shown_pos`` (s, 2)
@@ -147,6 +148,7 @@ class FilterState:
     reported_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     reported_origin: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     reported_travel: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    reported_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
     reported_hits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shown: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shown_pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
@@ -179,14 +181,18 @@ class FilterState:
 
     def confirmed_travel(self, labels: np.ndarray, ex: ExtractionConfig) -> np.ndarray:
         """
-        How far (m) each of ``labels`` has travelled, for those confirmed
-        (:meth:`confirmed_rows`); -1 for the others.
+        How far (m) each of ``labels`` has travelled beyond its own first extent (its
+        semi-major axis when first reported), for those confirmed (:meth:`confirmed_rows`);
+        -1 for the others. A static object whose returns are learned as background one
+        side after the other sees its centre shift by up to its own size; that is not
+        travel.
         """
         out = np.full(len(labels), -1.0)
         if len(labels) and len(self.reported):
             at, found = _find_sorted(self.reported, labels)
             ok = found & self.confirmed_rows(ex)[at]
-            out[ok] = self.reported_travel[at[ok]]
+            out[ok] = np.maximum(self.reported_travel[at[ok]] - self.reported_size[at[ok]],
+                                 0.0)
         return out
 
 
@@ -616,6 +622,7 @@ def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConf
                    reported_scans=state.reported_scans[keep],
                    reported_origin=state.reported_origin[keep],
                    reported_travel=state.reported_travel[keep],
+                   reported_size=state.reported_size[keep],
                    reported_hits=state.reported_hits[keep])
     return state, est.take(keep), np.sort(est.label[~keep])
 
@@ -896,6 +903,8 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
     scans[again] = old.reported_scans[i] + 1
     origin = est.m[:, :2].copy()
     origin[again] = old.reported_origin[i]
+    size = est.axes()[0].copy() if len(est) else np.zeros(0)
+    size[again] = old.reported_size[i]
     d = est.m[:, :2] - origin
     travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
     # only where returns placed it: a coasting label drifts with its predicted velocity
@@ -904,7 +913,7 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
     hits = (est.num_detections > 0).astype(np.int64)
     hits[again] += old.reported_hits[i]
     return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
-                  reported_travel=travel, reported_hits=hits)
+                  reported_travel=travel, reported_size=size, reported_hits=hits)
 
 
 def _pad(a, n: int, fill: float):

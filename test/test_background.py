@@ -154,6 +154,27 @@ def test_travel_that_protects_counts_only_scans_with_returns():
     assert state.confirmed_travel(np.array([7]), not_yet).tolist() == [-1.0]  # not 13 in a row
 
 
+def test_travel_is_counted_beyond_the_first_extent():
+    """
+    A static object whose returns are learned one side after the other sees its centre
+    shift by up to its own size (a MiR table, 0.55 m in 1.2 s): that is not travel. Travel
+    counts beyond the semi-major axis the label was first reported with.
+    """
+    def report(state, x, semi):
+        est = estimates([7], [[x, 0.0]])
+        est.X[:] = np.diag([semi ** 2, 0.01])
+        est.num_detections[:] = 5
+        return _record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
+
+    ex = from_dict({'extraction': {'confirm_detections': 0}}).extraction
+    state = report(FilterState.initial(from_dict({})), 0.0, 0.5)
+    for x in np.linspace(0.05, 0.55, 11):                # the centre creeps 0.55 m
+        state = report(state, x, 0.3)                      # while the extent shrinks
+    assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.05)
+    state = report(state, 1.2, 0.3)                        # then it really goes
+    assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.7)
+
+
 def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_track():
     """
     A small static object in open space that returns in 60 % of scans (dark, at the edge

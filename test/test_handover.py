@@ -25,6 +25,7 @@ def lost_state(shown, pos, vel=None, elapsed=None, reported=(), reported_scans=(
         reported=np.array(reported, dtype=np.int64),
         reported_scans=np.array(reported_scans, dtype=np.int64),
         reported_origin=np.zeros((len(reported), 2)), reported_travel=np.zeros(len(reported)),
+        reported_size=np.zeros(len(reported)),
         reported_hits=np.array(reported_scans, dtype=np.int64),
         shown=np.array(shown, dtype=np.int64), shown_pos=np.array(pos, dtype=float),
         shown_vel=np.zeros((k, 2)) if vel is None else np.array(vel, dtype=float),

@@ -98,7 +98,8 @@ def test_a_shown_id_survives_a_heavier_fresh_label_on_the_same_object():
                     mixture=mixture([(7, 0.3, 3.0, 0.0), (12, 0.8, 3.01, 0.0)]),
                     next_label=13, reported=np.array([7]), reported_scans=np.array([25]),
                     reported_hits=np.array([25]),
-                    reported_origin=np.array([[1.0, 0.0]]), reported_travel=np.array([2.0]))
+                    reported_origin=np.array([[1.0, 0.0]]), reported_travel=np.array([2.0]),
+                    reported_size=np.zeros(1))
     pts = np.array([3.0, 0.0]) + rng.normal(0, 0.12, (12, 2))
     state, est, diag = filter_step(state, pts, 0.1, cfg)
     assert diag.fused_labels == 1

@@ -125,7 +125,8 @@ def tracked_legs(cfg, left, right):
     return replace(state, mixture=mix, log_card=log_card, next_label=6,
                    reported=np.array([3, 5]), reported_scans=np.array([40, 30]),
                    reported_hits=np.array([40, 30]),
-                   reported_origin=np.array([left, right]), reported_travel=np.zeros(2))
+                   reported_origin=np.array([left, right]), reported_travel=np.zeros(2),
+                   reported_size=np.zeros(2))
 
 
 @pytest.mark.parametrize('pair_scans,mode', [(0, 'cphd'), (3, 'cphd'), (0, 'phd'),
@@ -165,7 +166,8 @@ def test_a_leg_born_beside_its_walker_is_never_shown(pair_scans):
     log_card[1] = 0.0
     state = replace(state, mixture=mix, log_card=log_card, reported=np.array([3]),
                     reported_scans=np.array([40]), reported_hits=np.array([40]),
-                    reported_origin=np.array([[2.0, 0.175]]), reported_travel=np.zeros(1))
+                    reported_origin=np.array([[2.0, 0.175]]), reported_travel=np.zeros(1),
+                    reported_size=np.zeros(1))
     seen = set()
     for k in range(30):
         state, est, _ = filter_step(state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0)),
@@ -220,7 +222,7 @@ def test_a_leg_whose_pair_forms_after_its_birth_is_never_shown():
     state = replace(state, mixture=state.mixture.take(np.array([0])), log_card=log_card,
                     reported=np.array([3]), reported_scans=np.array([40]),
                     reported_hits=np.array([40]), reported_origin=np.array([[2.0, 0.0]]),
-                    reported_travel=np.zeros(1))
+                    reported_travel=np.zeros(1), reported_size=np.zeros(1))
     seen, joined = set(), 0
     for k in range(20):
         t = 0.1 * (k + 1)
