@@ -175,6 +175,28 @@ def test_travel_is_counted_beyond_the_first_extent():
     assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.7)
 
 
+def test_a_beam_flipping_between_two_ranges_learns_both():
+    """
+    The edge of a post: the beam returns the post (1.9 m) or the wall (4.9 m), in turn,
+    from start-up, with no background known. Both ranges age as candidates; the first to
+    have been returned for confirm_time becomes the background, the other a second range
+    (each kept one scan at a time, a single candidate restarted at every flip and never
+    got there). A farther range that turns up while the background is still returned is
+    a second range too, not a replacement of the background.
+    """
+    cfg = from_dict({}).background
+    no = np.zeros(3, bool)
+    state, keep = _empty_then([1.9, 4.9] * 11, cfg, no)    # the 11th return of each
+    assert not keep.any()
+    assert np.allclose(state.background, 1.9) and np.allclose(state.second, 4.9)
+    state, keep = _empty_then([1.9, 4.9] * 11 + [1.9, 4.9], cfg, no)
+    assert not keep.any() and not state.learned.any()
+    # known background 1.9 m, then 4.9 m in every other scan: a second range
+    state, keep = _empty_then([1.9] * 12 + [4.9, 1.9] * 10 + [4.9], cfg, no)
+    assert not keep.any() and state.learned.all()
+    assert np.allclose(state.background, 1.9) and np.allclose(state.second, 4.9)
+
+
 def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_track():
     """
     A small static object in open space that returns in 60 % of scans (dark, at the edge

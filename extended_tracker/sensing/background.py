@@ -3,26 +3,30 @@ Static background of a stationary scanner, learned per beam online.
 
 Notes
 -----
-Each beam keeps a background range ``b`` (NaN while unknown) and a candidate range ``c``
-with the time it has persisted. A return within ``margin`` of ``b`` is background: it is
-dropped and refines ``b``. Otherwise the candidate ages while the beam keeps returning
-the same range:
+Each beam keeps a background range ``b`` (NaN while unknown) and two candidate ranges,
+its latest two other than the background, each with the time it has been returned (a
+scan period for each return of it; a beam with no return, a dropout or nothing in
+range, and a background return change nothing). A return within ``margin`` of ``b`` is
+background: it is dropped and refines ``b``. A candidate returned for ``confirm_time``
+is *ripe*:
 
-- with no background yet, a candidate that persists ``confirm_time`` becomes it;
-- a candidate *farther* than ``b`` (something moved away and revealed what is behind)
-  replaces it after ``confirm_time``;
-- a beam with no return (a dropout, or nothing in range) changes nothing;
+- with no background yet, a ripe candidate becomes it;
+- a ripe candidate *farther* than ``b`` (something moved away and revealed what is
+  behind) replaces it;
 - a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
-  it only after ``forget_time``, so people pausing briefly are not learned.
+  it only after ``forget_time``, so people pausing briefly are not learned;
+- but a ripe candidate on a beam that has also returned ``b`` within the last
+  ``confirm_time``, nearer or farther, becomes the beam's *second* background range: the
+  beam flips between the two (an object's edge, a thin post or table leg that the beam
+  hits in some scans only). A second range not returned for ``forget_time`` is
+  forgotten.
 
-A beam that keeps returning its background between returns at one nearer range (a thin
-post or a table leg that the beam hits in some scans only) learns that range as a
-*second* background range once its returns there add up to ``confirm_time``; a second
-range not seen for ``forget_time`` is forgotten. A candidate's age does not restart on a
-background return, so only the returns that are not background count.
+Keeping two candidates lets both ranges of a flipping beam age: with one, every flip
+restarted it and an edge beam of a post was never learned.
 
 Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
-person-sized and moved ``moved_distance`` while seen: the caller decides) are never
+person-sized and moved ``moved_distance`` beyond its first extent while seen: the caller
+decides) are never
 learned from where the background is known or the beam was seen free, so a person who
 walks in and stops stays tracked however long they stand, in front of a wall or of open
 space. A track that never moved protects nothing: a static object is learned like any
@@ -69,6 +73,8 @@ class BackgroundState:
     background_ago: np.ndarray        # time since a return matched the background
     second: np.ndarray                # second background range (NaN: none)
     second_ago: np.ndarray            # time since a return matched the second range
+    candidate2: np.ndarray            # the beam's other recent range (NaN: none)
+    candidate2_age: np.ndarray
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
@@ -76,7 +82,8 @@ class BackgroundState:
         never = np.full(b, np.inf)
         return BackgroundState(scan.angles.copy(), np.full(b, np.nan), np.full(b, np.nan),
                                np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool),
-                               np.zeros(b, dtype=bool), never, np.full(b, np.nan), never)
+                               np.zeros(b, dtype=bool), never, np.full(b, np.nan), never,
+                               np.full(b, np.nan), np.zeros(b))
 
     def matches(self, scan: ScanPoints) -> bool:
         return (len(self.angles) == len(scan.angles)
@@ -115,8 +122,8 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         state = BackgroundState.for_scan(scan)
     b = state.background.copy()
     s2 = state.second.copy()
-    c = state.candidate.copy()
-    age = state.candidate_age.copy()
+    c, age = state.candidate.copy(), state.candidate_age.copy()
+    c2, age2 = state.candidate2.copy(), state.candidate2_age.copy()
     r = scan.ranges                                   # inf where no return
     margin = cfg.margin
     known = np.isfinite(b)
@@ -135,20 +142,29 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # row; a later return does not undo it (a person standing there)
         empty = np.where(seen | known, 0.0, state.empty_age + dt)
         free = state.free | (empty >= cfg.confirm_time - 1e-6)
-        # candidates: a beam returning the same range as before keeps ageing; a beam with
-        # no return (dropout, or nothing in range) or a background return tells nothing
-        # and changes nothing
-        same = seen & np.isfinite(c) & (np.abs(r - c) <= margin)
         learn = seen & ~is_bg & ~(protected & (known | free))
+        # candidates: the beam's two latest ranges, each ageing by a scan period whenever
+        # it is returned (a beam with no return, or a background return, changes
+        # nothing); the one returned this scan is put first, a new range pushes the first
+        # to second place
+        on_c2 = learn & ~(np.abs(r - c) <= margin) & (np.abs(r - c2) <= margin)
+        c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
+        age, age2 = np.where(on_c2, age2, age), np.where(on_c2, age, age2)
+        same = learn & (np.abs(r - c) <= margin)
+        fresh = learn & ~same
+        c2, age2 = np.where(fresh, c, c2), np.where(fresh, age, age2)
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
-        age = np.where(learn, np.where(same, age + dt, 0.0), age)
-        c = np.where(learn, np.where(same, c + gain * (r - c), r), c)
+        age = np.where(same, age + dt, np.where(fresh, 0.0, age))
+        c = np.where(same, c + gain * (r - c), np.where(fresh, r, c))
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
         ripe = age >= cfg.confirm_time - 1e-6
-        promote = learn & ((farther & ripe) | (nearer & (age >= cfg.forget_time - 1e-6)))
-        # nearer, ripe, and the background seen lately: a thin object seen in some scans
-        second = learn & nearer & ripe & ~promote & (b_ago <= cfg.confirm_time)
+        # the background returned within confirm_time: the beam flips between it and the
+        # candidate (an object's edge, a thin post), so the candidate is a second range
+        lately = known & (b_ago <= cfg.confirm_time)
+        promote = learn & ((farther & ripe & ~lately)
+                           | (nearer & (age >= cfg.forget_time - 1e-6)))
+        second = learn & ripe & lately & ~promote
         b = np.where(promote, c, b)
         b_ago = np.where(promote, 0.0, b_ago)
         s2 = np.where(second, c, np.where(s2_ago > cfg.forget_time, np.nan, s2))
@@ -156,5 +172,5 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         learned = promote | second
         age = np.where(learned, 0.0, age)
     keep = ~(is_bg | learned)[scan.beam]
-    return BackgroundState(state.angles, b, c, age, empty, free, learned, b_ago, s2,
-                           s2_ago), keep
+    return BackgroundState(state.angles, b, c, age, empty, free, learned, b_ago, s2, s2_ago,
+                           c2, age2), keep
