@@ -903,8 +903,10 @@ def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filte
     scans[again] = old.reported_scans[i] + 1
     origin = est.m[:, :2].copy()
     origin[again] = old.reported_origin[i]
-    size = est.axes()[0].copy() if len(est) else np.zeros(0)
+    size = np.empty(len(est))
     size[again] = old.reported_size[i]
+    if len(i) < len(est):                          # the semi-major axis of the new ones
+        size[~again] = np.sqrt(eig2(est.X[~again])[0])
     d = est.m[:, :2] - origin
     travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
     # only where returns placed it: a coasting label drifts with its predicted velocity
