@@ -157,7 +157,7 @@ def test_travel_that_protects_counts_only_scans_with_returns():
 def test_travel_is_counted_beyond_the_first_extent():
     """
     A static object whose returns are learned one side after the other sees its centre
-    shift by up to its own size (a MiR table, 0.55 m in 1.2 s): that is not travel. Travel
+    shift by up to its own size (MiR furniture: 0.55 m in 1.2 s): that is not travel. Travel
     counts beyond the semi-major axis the label was first reported with.
     """
     def report(state, x, semi):
