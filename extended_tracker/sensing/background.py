@@ -147,10 +147,11 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # it is returned (a beam with no return, or a background return, changes
         # nothing); the one returned this scan is put first, a new range pushes the first
         # to second place
-        on_c2 = learn & ~(np.abs(r - c) <= margin) & (np.abs(r - c2) <= margin)
+        on_c = np.abs(r - c) <= margin
+        on_c2 = learn & ~on_c & (np.abs(r - c2) <= margin)
         c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
         age, age2 = np.where(on_c2, age2, age), np.where(on_c2, age, age2)
-        same = learn & (np.abs(r - c) <= margin)
+        same = learn & (on_c | on_c2)
         fresh = learn & ~same
         c2, age2 = np.where(fresh, c, c2), np.where(fresh, age, age2)
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
