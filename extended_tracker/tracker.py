@@ -566,7 +566,7 @@ def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
     joined = forming = NO_LABELS
     pairs, runs = np.zeros((0, 2), np.int64), NO_LABELS
     if len(est) > 1:
-        semi = np.sqrt(eig2(est.X)[0])
+        semi = est.axes()[0]
         i, j = np.triu_indices(len(est), 1)
         d = est.m[i, :2] - est.m[j, :2]
         dv = est.m[i, 2:] - est.m[j, 2:]
