@@ -54,6 +54,7 @@ class PipelineState:
     last_stamp_ns: int | None = None
     frame_id: str | None = None
     last_estimates: Estimates = field(default_factory=Estimates.empty)
+    moved: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     scans: int = 0
     elapsed: float = 0.0
 
@@ -223,13 +224,19 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     points = sp.points
     bg_points = np.zeros((0, 2))
     learned = bg_points                    # returns whose beams were learned this scan
+    moved = state.moved
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates
         bgc = cfg.background
-        # confirmed, person-sized tracks that have moved protect their returns
+        # confirmed, person-sized tracks that have moved protect their returns; a label
+        # seen to move keeps protecting while it lives, though its report record (and
+        # travel) restarts after a scan it was not reported in (a walker who stops just
+        # after a scan with both legs hidden)
         travel = filt.confirmed_travel(est.label, cfg.extraction)
+        moved = np.union1d(moved[np.isin(moved, filt.shown)],
+                           est.label[travel >= bgc.moved_distance])
         major = est.axes()[0] if len(est) else np.zeros(0)
-        guard = (travel >= bgc.moved_distance) & (major <= bgc.protect_semi_axis)
+        guard = np.isin(est.label, moved) & (major <= bgc.protect_semi_axis)
         prot = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate)
         background, keep = update_background(background, sp, dt, bgc, prot)
         bg_points = points[~keep]
@@ -274,7 +281,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
-                       frame_id=frame, last_estimates=estimates, scans=state.scans + 1,
+                       frame_id=frame, last_estimates=estimates, moved=moved,
+                       scans=state.scans + 1,
                        elapsed=state.elapsed + dt)
     card, mean = _card_of(new_state)
     result = StepResult(now, frame, estimates, card, mean, points, bg_points, diag, event,

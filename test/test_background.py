@@ -1,5 +1,7 @@
 """Static background: walls and furniture vanish, a person who stops stays tracked."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from extended_tracker.config import from_dict
@@ -314,4 +316,33 @@ def test_static_object_in_front_of_the_wall_is_learned_after_forget_time_though_
         assert len(res.estimates) == 1, (k, res.estimates.m[:, :2])
         assert np.linalg.norm(res.estimates.m[0, :2] - p.centre) < 0.3, k
         labels.add(int(res.estimates.label[0]))
+    assert len(labels) == 1
+
+
+def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
+    """
+    A walker who stops in front of the wall, then is hidden for half a second (their label
+    not reported in those scans, which restarts its report record and travel), is still
+    held by its track: it had moved while it lived. Before, the restarted record counted
+    no travel and the person was learned after forget_time (3 s here), at 9.6 s.
+    """
+    wall = (((8.0, -5.0), (8.0, 5.0)),)
+    cfg = from_dict({'background': {'forget_time': 3.0}})
+    person = SimObject((6.0, 3.0), (-0.5, -0.5), t_start=2.0, stops=((4.0, 14.0),))
+    state = PipelineState.initial(cfg)
+    counts, labels = [], set()
+    for k, (scan, truth) in enumerate(simulate(Scene((person,), walls=wall, laser=LaserSpec()),
+                                               14.0, seed=8)):
+        if 60 <= k <= 64:                          # every return of the person lost
+            scan = replace(scan, ranges=np.where(np.asarray(scan.ranges) < 7.0, np.inf,
+                                                 scan.ranges))
+        state, res = step(state, scan, cfg)
+        counts.append(len(res.estimates))
+        if k >= 30 and len(res.estimates):
+            (p,) = truth
+            assert np.linalg.norm(res.estimates.m[0, :2] - p.centre) < 0.3, k
+            labels.add(int(res.estimates.label[0]))
+    assert all(n == 0 for n in counts[62:66]), counts       # the label was not reported
+    assert all(n == 1 for n in counts[70:]), counts         # and is again, to the end
+    assert all(n == 1 for n in counts[30:62]), counts
     assert len(labels) == 1
