@@ -346,3 +346,45 @@ def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
     assert all(n == 1 for n in counts[70:]), counts         # and is again, to the end
     assert all(n == 1 for n in counts[30:62]), counts
     assert len(labels) == 1
+
+
+def _sparkle(ranges_of, n_scans, cfg, n_beams=31, seed=0):
+    """
+    Beams 0.35 deg apart (3 cm at 5 m) that each return ``ranges_of(beam)`` in a random
+    fifth of the scans and nothing otherwise; the keep-mask of every scan's returns.
+    """
+    rng = np.random.default_rng(seed)
+    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
+    (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
+    target = np.array([ranges_of(b) for b in range(n_beams)], dtype=np.float32)
+    state, kept = None, []
+    no = np.zeros(n_beams, bool)
+    for _ in range(n_scans):
+        scan.ranges = np.where(rng.random(n_beams) < 0.2, target, np.inf).astype(np.float32)
+        sp = scan_to_points(scan)
+        state, keep = update_background(state, sp, 0.1, cfg, no)
+        kept.append(keep)
+    return state, kept
+
+
+def test_a_surface_that_sparkles_over_the_beams_is_learned_from_all_of_them():
+    """
+    A wall at the edge of range, returned by each beam in a fifth of the scans only (the
+    leg_tracker demo's far spots): a beam that returned nothing ages its candidate when a
+    neighbour within ``margin`` across returned that range, so the wall is learned once it
+    has been returned somewhere near each beam for confirm_time, not after 10 returns of
+    each beam (some 50 scans), and its returns stop reaching the filter.
+    """
+    cfg = from_dict({}).background                  # margin 0.15 m: 4 beams at 5 m
+    state, kept = _sparkle(lambda b: 5.0, 60, cfg)
+    late = np.concatenate(kept[25:])
+    assert np.mean(late) < 0.05, np.mean(late)
+    assert np.isfinite(state.background).mean() > 0.9
+    # each beam alone: far fewer of its returns are background by then
+    lone = from_dict({'background': {'margin': 0.005}}).background   # no neighbour within
+    _, kept = _sparkle(lambda b: 5.0, 60, lone)
+    assert np.mean(np.concatenate(kept[25:40])) > 0.5
+    # neighbours returning other ranges age nothing: a staircase, 0.2 m a beam, is learned
+    # beam by beam
+    _, kept = _sparkle(lambda b: 3.0 + 0.2 * b, 60, cfg)
+    assert np.mean(np.concatenate(kept[25:40])) > 0.5

@@ -5,10 +5,12 @@ Notes
 -----
 Each beam keeps a background range ``b`` (NaN while unknown) and two candidate ranges,
 its latest two other than the background, each with the time it has been returned (a
-scan period for each return of it; a beam with no return, a dropout or nothing in
-range, and a background return change nothing). A return within ``margin`` of ``b`` is
-background: it is dropped and refines ``b``. A candidate returned for ``confirm_time``
-is *ripe*:
+scan period for each return of it; a background return changes nothing). A beam with no
+return (a dropout, or nothing in range) ages its first candidate when a neighbouring
+beam, within ``margin`` across at that range, returned it: a surface at the edge of
+range is returned now by one beam, now by another, and each beam alone took some 50
+scans to return it ten times. A return within ``margin`` of ``b`` is background: it is
+dropped and refines ``b``. A candidate returned for ``confirm_time`` is *ripe*:
 
 - with no background yet, a ripe candidate becomes it;
 - a ripe candidate *farther* than ``b`` (something moved away and revealed what is
@@ -144,9 +146,9 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         free = state.free | (empty >= cfg.confirm_time - 1e-6)
         learn = seen & ~is_bg & ~(protected & (known | free))
         # candidates: the beam's two latest ranges, each ageing by a scan period whenever
-        # it is returned (a beam with no return, or a background return, changes
-        # nothing); the one returned this scan is put first, a new range pushes the first
-        # to second place
+        # it is returned (a background return changes nothing; no return, see below);
+        # the one returned this scan is put first, a new range pushes the first to second
+        # place
         on_c = np.abs(r - c) <= margin
         on_c2 = learn & ~on_c & (np.abs(r - c2) <= margin)
         c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
@@ -157,6 +159,10 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
         age = np.where(same, age + dt, np.where(fresh, 0.0, age))
         c = np.where(same, c + gain * (r - c), np.where(fresh, r, c))
+        # a beam that returned nothing ages its candidate when a neighbour returned that
+        # range: a surface near the edge of range sparkles over the beams
+        age = np.where(_neighbour_returned(c, r, learn, ~seen, state.angles, margin),
+                       age + dt, age)
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
         ripe = age >= cfg.confirm_time - 1e-6
@@ -175,3 +181,32 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
     keep = ~(is_bg | learned)[scan.beam]
     return BackgroundState(state.angles, b, c, age, empty, free, learned, b_ago, s2, s2_ago,
                            c2, age2), keep
+
+
+
+
+
+NEIGHBOUR_BEAMS = 8                 # at most this many beams either side (a near surface)
+_OFFSETS = np.arange(-NEIGHBOUR_BEAMS, NEIGHBOUR_BEAMS + 1)
+
+
+def _neighbour_returned(c, r, learn, idle, angles, margin):
+    """
+    The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
+    scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
+    within ``margin`` across at its candidate's range, at most :data:`NEIGHBOUR_BEAMS`
+    either side.
+    """
+    n = len(c)
+    hit = np.zeros(n, dtype=bool)
+    src = learn.nonzero()[0]
+    if n < 2 or not len(src):
+        return hit
+    j = src[:, None] + _OFFSETS                       # the beams each return may age
+    jc = np.clip(j, 0, n - 1)
+    cj = c[jc]                                         # NaN (no candidate) compares False
+    across = np.abs(_OFFSETS * (angles[1] - angles[0]))
+    ok = (idle[jc] & (jc == j) & (np.abs(r[src, None] - cj) <= margin)
+          & (across * cj <= margin))
+    hit[jc[ok]] = True
+    return hit
