@@ -348,10 +348,11 @@ def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
     assert len(labels) == 1
 
 
-def _sparkle(ranges_of, n_scans, cfg, n_beams=31, seed=0):
+def _sparkle(ranges_of, n_scans, cfg, n_beams=31, seed=0, otherwise=np.inf, first=0):
     """
-    Beams 0.35 deg apart (3 cm at 5 m) that each return ``ranges_of(beam)`` in a random
-    fifth of the scans and nothing otherwise; the keep-mask of every scan's returns.
+    Beams 0.35 deg apart (3 cm at 5 m) that return ``otherwise`` (default: nothing) in
+    the ``first`` scans, and then each ``ranges_of(beam)`` in a random fifth of the scans
+    and ``otherwise`` in the others; the keep-mask of every scan's ``ranges_of`` returns.
     """
     rng = np.random.default_rng(seed)
     spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
@@ -359,11 +360,12 @@ def _sparkle(ranges_of, n_scans, cfg, n_beams=31, seed=0):
     target = np.array([ranges_of(b) for b in range(n_beams)], dtype=np.float32)
     state, kept = None, []
     no = np.zeros(n_beams, bool)
-    for _ in range(n_scans):
-        scan.ranges = np.where(rng.random(n_beams) < 0.2, target, np.inf).astype(np.float32)
+    for k in range(n_scans):
+        hit = (rng.random(n_beams) < 0.2) & (k >= first)
+        scan.ranges = np.where(hit, target, otherwise).astype(np.float32)
         sp = scan_to_points(scan)
         state, keep = update_background(state, sp, 0.1, cfg, no)
-        kept.append(keep)
+        kept.append(keep[hit[sp.beam]])
     return state, kept
 
 
@@ -388,3 +390,21 @@ def test_a_surface_that_sparkles_over_the_beams_is_learned_from_all_of_them():
     # beam by beam
     _, kept = _sparkle(lambda b: 3.0 + 0.2 * b, 60, cfg)
     assert np.mean(np.concatenate(kept[25:40])) > 0.5
+
+
+def test_a_gap_that_shows_the_wall_now_and_then_is_learned_from_all_its_beams():
+    """
+    The same through a gap: each beam returns its known background (2.2 m) and in a
+    fifth of the scans the wall behind (4.9 m, obstacle_detector's spot). A beam that
+    returned its background ages its candidate when a neighbour returned it, and the
+    wall becomes every beam's second range.
+    """
+    cfg = from_dict({}).background
+    state, kept = _sparkle(lambda b: 4.9, 75, cfg, otherwise=2.2, first=15)
+    assert np.allclose(state.background, 2.2, atol=0.01)
+    late = np.concatenate(kept[45:])
+    assert len(late) > 100 and np.mean(late) < 0.05, np.mean(late)   # the wall's returns
+    assert np.isfinite(state.second).mean() > 0.9
+    lone = from_dict({'background': {'margin': 0.005}}).background
+    _, kept = _sparkle(lambda b: 4.9, 75, lone, otherwise=2.2, first=15)
+    assert np.mean(np.concatenate(kept[45:60])) > 0.5

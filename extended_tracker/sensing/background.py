@@ -5,12 +5,13 @@ Notes
 -----
 Each beam keeps a background range ``b`` (NaN while unknown) and two candidate ranges,
 its latest two other than the background, each with the time it has been returned (a
-scan period for each return of it; a background return changes nothing). A beam with no
-return (a dropout, or nothing in range) ages its first candidate when a neighbouring
-beam, within ``margin`` across at that range, returned it: a surface at the edge of
-range is returned now by one beam, now by another, and each beam alone took some 50
-scans to return it ten times. A return within ``margin`` of ``b`` is background: it is
-dropped and refines ``b``. A candidate returned for ``confirm_time`` is *ripe*:
+scan period for each return of it). A beam that returned nothing (a dropout, or nothing
+in range) or its background ages its first candidate when a neighbouring beam, within
+``margin`` across at that range, returned it: a surface at the edge of range, or seen
+through a gap now and then, is returned now by one beam, now by another, and each beam
+alone took some 50 scans to return it ten times. A return within ``margin`` of ``b`` is
+background: it is dropped and refines ``b``. A candidate returned for ``confirm_time``
+is *ripe*:
 
 - with no background yet, a ripe candidate becomes it;
 - a ripe candidate *farther* than ``b`` (something moved away and revealed what is
@@ -146,9 +147,8 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         free = state.free | (empty >= cfg.confirm_time - 1e-6)
         learn = seen & ~is_bg & ~(protected & (known | free))
         # candidates: the beam's two latest ranges, each ageing by a scan period whenever
-        # it is returned (a background return changes nothing; no return, see below);
-        # the one returned this scan is put first, a new range pushes the first to second
-        # place
+        # it is returned (or a neighbour returns it, below); the one returned this scan
+        # is put first, a new range pushes the first to second place
         on_c = np.abs(r - c) <= margin
         on_c2 = learn & ~on_c & (np.abs(r - c2) <= margin)
         c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
@@ -159,9 +159,11 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # ages count scans' dt with a little slack so that k scans of dt reach k * dt
         age = np.where(same, age + dt, np.where(fresh, 0.0, age))
         c = np.where(same, c + gain * (r - c), np.where(fresh, r, c))
-        # a beam that returned nothing ages its candidate when a neighbour returned that
-        # range: a surface near the edge of range sparkles over the beams
-        age = np.where(_neighbour_returned(c, r, learn, ~seen, state.angles, margin),
+        # a beam that returned nothing or its background ages its candidate when a
+        # neighbour returned that range: a surface at the edge of range, or behind a gap,
+        # sparkles over the beams
+        idle = ~seen | is_bg
+        age = np.where(_neighbour_returned(c, r, learn, idle, state.angles, margin),
                        age + dt, age)
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
