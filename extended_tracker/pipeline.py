@@ -54,7 +54,7 @@ class PipelineState:
     last_stamp_ns: int | None = None
     frame_id: str | None = None
     last_estimates: Estimates = field(default_factory=Estimates.empty)
-    moved: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    moved: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # see step
     scans: int = 0
     elapsed: float = 0.0
 

@@ -104,6 +104,32 @@ def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: n
     return prot
 
 
+NEIGHBOUR_BEAMS = 8                 # at most this many beams either side (a near surface)
+_OFFSETS = np.arange(-NEIGHBOUR_BEAMS, NEIGHBOUR_BEAMS + 1)
+
+
+def _neighbour_returned(c, r, learn, idle, angles, margin):
+    """
+    The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
+    scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
+    within ``margin`` across at its candidate's range, at most :data:`NEIGHBOUR_BEAMS`
+    either side.
+    """
+    n = len(c)
+    hit = np.zeros(n, dtype=bool)
+    src = learn.nonzero()[0]
+    if n < 2 or not len(src):
+        return hit
+    j = src[:, None] + _OFFSETS                       # the beams each return may age
+    jc = np.clip(j, 0, n - 1)
+    cj = c[jc]                                         # NaN (no candidate) compares False
+    across = np.abs(_OFFSETS * (angles[1] - angles[0]))
+    ok = (idle[jc] & (jc == j) & (np.abs(r[src, None] - cj) <= margin)
+          & (across * cj <= margin))
+    hit[jc[ok]] = True
+    return hit
+
+
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
                       protected: np.ndarray) -> tuple[BackgroundState, np.ndarray]:
     """
@@ -183,32 +209,3 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
     keep = ~(is_bg | learned)[scan.beam]
     return BackgroundState(state.angles, b, c, age, empty, free, learned, b_ago, s2, s2_ago,
                            c2, age2), keep
-
-
-
-
-
-NEIGHBOUR_BEAMS = 8                 # at most this many beams either side (a near surface)
-_OFFSETS = np.arange(-NEIGHBOUR_BEAMS, NEIGHBOUR_BEAMS + 1)
-
-
-def _neighbour_returned(c, r, learn, idle, angles, margin):
-    """
-    The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
-    scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
-    within ``margin`` across at its candidate's range, at most :data:`NEIGHBOUR_BEAMS`
-    either side.
-    """
-    n = len(c)
-    hit = np.zeros(n, dtype=bool)
-    src = learn.nonzero()[0]
-    if n < 2 or not len(src):
-        return hit
-    j = src[:, None] + _OFFSETS                       # the beams each return may age
-    jc = np.clip(j, 0, n - 1)
-    cj = c[jc]                                         # NaN (no candidate) compares False
-    across = np.abs(_OFFSETS * (angles[1] - angles[0]))
-    ok = (idle[jc] & (jc == j) & (np.abs(r[src, None] - cj) <= margin)
-          & (across * cj <= margin))
-    hit[jc[ok]] = True
-    return hit
