@@ -110,6 +110,18 @@ def test_gap_reinitialises_and_dt_is_never_negative():
     assert new_state.filter.dt == pytest.approx(CFG.timing.default_dt)
 
 
+def test_a_time_gap_forgets_which_labels_moved():
+    """The labels seen to move (they protect their returns) go with the tracks."""
+    cfg = from_dict({'background': {'enabled': True}})
+    data = scans(31)
+    state = PipelineState.initial(cfg)
+    for s in data[:30]:
+        state, _ = step(state, s, cfg)
+    assert len(state.moved) >= 1
+    state, res = step(state, with_stamp(data[30], state.last_stamp_ns + int(5e9)), cfg)
+    assert res.event == 'time_gap' and len(state.moved) == 0
+
+
 def test_foreign_frame_is_answered_with_the_tracked_frame():
     state = warm_state()
     other = copy.deepcopy(scans(21)[-1])
@@ -126,9 +138,11 @@ def test_reset_drops_tracks_background_and_frame_and_ids_continue():
     for s in data[:30]:
         state, res = step(state, s, cfg)
     assert len(res.estimates) >= 1 and state.background is not None
+    assert len(state.moved) >= 1                       # walkers that protect their returns
     old_max = int(res.estimates.label.max())
     fresh = reset(state, cfg)
     assert len(fresh.filter.mixture) == 0 and fresh.background is None
+    assert len(fresh.moved) == 0
     assert fresh.frame_id is None and fresh.filter.next_label == state.filter.next_label
     # a scan in another frame is now the tracked frame; the warm-up runs again
     other = copy.deepcopy(data[30])
