@@ -363,6 +363,20 @@ def bench_memory(n_scans):
     print(f'\nresident memory over {n_scans} scans: ' + ', '.join(f'{k}: {m:.1f} MB'
                                                               for k, m in rss))
     print(f'growth after the first 1000 scans: {rss[-1][1] - rss[1][1]:.2f} MB')
+    print(f'peak resident memory of the bench process (all cases so far): '
+          f'{_peak_rss_mb():.1f} MB')
+
+
+def _peak_rss_mb():
+    """The process's peak resident memory (MB): VmHWM, the high-water mark of VmRSS."""
+    try:
+        with open('/proc/self/status') as fh:
+            for line in fh:
+                if line.startswith('VmHWM:'):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def _rss_mb():

@@ -153,3 +153,16 @@ def test_scaling_png_has_the_growth_panel(tmp_path, monkeypatch):
     bench.bench_scaling(str(tmp_path / 'b.png'), 2)
     assert seen == [['objects (361 beams)', 'beams (10 objects)', 'objects x cells'],
                     ['objects (361 beams)', 'beams (10 objects)']]
+
+
+def test_memory_run_prints_the_resident_memory_and_the_peak(capsys):
+    from extended_tracker.bench import bench_memory
+
+    bench_memory(3)
+    out = capsys.readouterr().out
+    assert 'resident memory over 3 scans: 0: ' in out
+    last = float(out.split('resident memory over 3 scans: ')[1].split('\n')[0]
+                 .split(', ')[-1].split(': ')[1].split(' MB')[0])
+    peak = float(out.split('peak resident memory of the bench process (all cases so far): ')[1]
+                 .split(' MB')[0])
+    assert peak >= last - 0.05        # the high-water mark of the same figure (rounded)
