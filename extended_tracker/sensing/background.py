@@ -17,7 +17,10 @@ is *ripe*:
 - a ripe candidate *farther* than ``b`` (something moved away and revealed what is
   behind) replaces it;
 - a candidate *nearer* than ``b`` (something new stands still: a chair moved in) replaces
-  it only after ``forget_time``, so people pausing briefly are not learned;
+  it only after ``forget_time``, so people pausing briefly are not learned; but a return
+  that none of its neighbours (within ``margin`` across) returned anything near is
+  thinner than the beam spacing, no person (a mixed return at an object's edge, a thin
+  pole), and replaces it once ripe;
 - but a ripe candidate on a beam that has also returned ``b`` within the last
   ``confirm_time``, nearer or farther, becomes the beam's *second* background range: the
   beam flips between the two (an object's edge, a thin post or table leg that the beam
@@ -108,26 +111,36 @@ NEIGHBOUR_BEAMS = 8                 # at most this many beams either side (a nea
 _OFFSETS = np.arange(-NEIGHBOUR_BEAMS, NEIGHBOUR_BEAMS + 1)
 
 
-def _neighbour_returned(c, r, learn, idle, angles, margin):
+def _neighbours(c, r, seen, learn, idle, angles, margin):
     """
-    The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
-    scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
-    within ``margin`` across at its candidate's range, at most :data:`NEIGHBOUR_BEAMS`
-    either side.
+    What the neighbours of each beam returned this scan, a beam's neighbours being the
+    beams within ``margin`` across at the range in question (at most
+    :data:`NEIGHBOUR_BEAMS` either side). Returns two (B,) bool arrays:
+
+    - ``aged``: ``idle`` beams whose candidate range ``c`` a neighbour returned (a
+      ``learn`` return within ``margin`` of it);
+    - ``alone``: ``learn`` returns that have neighbours at their range, none of which
+      returned anything within ``margin`` of it (something thinner than the beam
+      spacing: a mixed return at an edge, a thin pole).
     """
     n = len(c)
-    hit = np.zeros(n, dtype=bool)
+    aged, alone = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     src = learn.nonzero()[0]
     if n < 2 or not len(src):
-        return hit
-    j = src[:, None] + _OFFSETS                       # the beams each return may age
+        return aged, alone
+    j = src[:, None] + _OFFSETS                       # the beams around each return
     jc = np.clip(j, 0, n - 1)
+    inside = jc == j
+    spacing = np.abs(angles[1] - angles[0])
+    across = np.abs(_OFFSETS) * spacing                # per unit range
+    rs = r[src, None]
     cj = c[jc]                                         # NaN (no candidate) compares False
-    across = np.abs(_OFFSETS * (angles[1] - angles[0]))
-    ok = (idle[jc] & (jc == j) & (np.abs(r[src, None] - cj) <= margin)
-          & (across * cj <= margin))
-    hit[jc[ok]] = True
-    return hit
+    ok = idle[jc] & inside & (np.abs(rs - cj) <= margin) & (across * cj <= margin)
+    aged[jc[ok]] = True
+    near = (seen[jc] & inside & (_OFFSETS != 0) & (np.abs(r[jc] - rs) <= margin)
+            & (across * rs <= margin))
+    alone[src] = (spacing * r[src] <= margin) & ~np.logical_or.reduce(near, axis=1)
+    return aged, alone
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
@@ -188,17 +201,18 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # a beam that returned nothing or its background ages its candidate when a
         # neighbour returned that range: a surface at the edge of range, or behind a gap,
         # sparkles over the beams
-        idle = ~seen | is_bg
-        age = np.where(_neighbour_returned(c, r, learn, idle, state.angles, margin),
-                       age + dt, age)
+        aged, alone = _neighbours(c, r, seen, learn, ~seen | is_bg, state.angles, margin)
+        age = np.where(aged, age + dt, age)
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
         ripe = age >= cfg.confirm_time - 1e-6
         # the background returned within confirm_time: the beam flips between it and the
         # candidate (an object's edge, a thin post), so the candidate is a second range
         lately = known & (b_ago <= cfg.confirm_time)
+        # nearer: after forget_time, or confirm_time for a return thinner than the beam
+        # spacing (no person; a mixed return at an edge, a thin pole)
         promote = learn & ((farther & ripe & ~lately)
-                           | (nearer & (age >= cfg.forget_time - 1e-6)))
+                           | (nearer & (alone & ripe | (age >= cfg.forget_time - 1e-6))))
         second = learn & ripe & lately & ~promote
         b = np.where(promote, c, b)
         b_ago = np.where(promote, 0.0, b_ago)
