@@ -109,38 +109,53 @@ def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: n
 
 NEIGHBOUR_BEAMS = 8                 # at most this many beams either side (a near surface)
 _OFFSETS = np.arange(-NEIGHBOUR_BEAMS, NEIGHBOUR_BEAMS + 1)
+_NOT_SELF = _OFFSETS != 0
+with np.errstate(divide='ignore'):
+    _PER_OFFSET = 1.0 / np.abs(_OFFSETS)           # inf for the beam itself
 
 
-def _neighbours(c, r, seen, learn, idle, angles, margin):
+def _padded(a, fill):
+    """``a`` with NEIGHBOUR_BEAMS ``fill`` values either side, so that the window
+    ``i + NEIGHBOUR_BEAMS + _OFFSETS`` of any beam ``i`` is inside it."""
+    pad = np.full(NEIGHBOUR_BEAMS, fill, dtype=a.dtype)
+    return np.concatenate([pad, a, pad])
+
+
+def _reach(angles, margin):
+    """Per offset: the range up to which that many beams are within ``margin`` across."""
+    return _PER_OFFSET * (margin / abs(float(angles[1] - angles[0])))
+
+
+def _neighbour_returned(c, r, learn, idle, reach, margin):
     """
-    What the neighbours of each beam returned this scan, a beam's neighbours being the
-    beams within ``margin`` across at the range in question (at most
-    :data:`NEIGHBOUR_BEAMS` either side). Returns two (B,) bool arrays:
-
-    - ``aged``: ``idle`` beams whose candidate range ``c`` a neighbour returned (a
-      ``learn`` return within ``margin`` of it);
-    - ``alone``: ``learn`` returns that have neighbours at their range, none of which
-      returned anything within ``margin`` of it (something thinner than the beam
-      spacing: a mixed return at an edge, a thin pole).
+    The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
+    scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
+    within ``margin`` across at its candidate's range (``reach``, :func:`_reach`), at
+    most :data:`NEIGHBOUR_BEAMS` either side.
     """
     n = len(c)
-    aged, alone = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    hit = np.zeros(n, dtype=bool)
     src = learn.nonzero()[0]
     if n < 2 or not len(src):
-        return aged, alone
-    j = src[:, None] + _OFFSETS                       # the beams around each return
-    jc = np.clip(j, 0, n - 1)
-    inside = jc == j
-    spacing = np.abs(angles[1] - angles[0])
-    across = np.abs(_OFFSETS) * spacing                # per unit range
-    rs = r[src, None]
-    cj = c[jc]                                         # NaN (no candidate) compares False
-    ok = idle[jc] & inside & (np.abs(rs - cj) <= margin) & (across * cj <= margin)
-    aged[jc[ok]] = True
-    near = (seen[jc] & inside & (_OFFSETS != 0) & (np.abs(r[jc] - rs) <= margin)
-            & (across * rs <= margin))
-    alone[src] = (spacing * r[src] <= margin) & ~np.logical_or.reduce(near, axis=1)
-    return aged, alone
+        return hit
+    j = src[:, None] + _OFFSETS                        # padded index of each neighbour
+    cj = _padded(c, np.nan)[j + NEIGHBOUR_BEAMS]       # NaN (none, or off the scan): False
+    ok = (_padded(idle, False)[j + NEIGHBOUR_BEAMS] & (np.abs(r[src, None] - cj) <= margin)
+          & (cj <= reach))
+    hit[j[ok]] = True
+    return hit
+
+
+def _alone(r, which, reach, margin):
+    """
+    Which of the returns of beams ``which`` (indices) are thinner than the beam spacing:
+    they have neighbours within ``margin`` across, none of which returned anything within
+    ``margin`` of them (a mixed return at an edge, a thin pole; no person).
+    """
+    rs = r[which, None]
+    rj = _padded(r, np.inf)[which[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
+    near = (np.abs(rj - rs) <= margin) & _NOT_SELF & (rs <= reach)
+    return (rs[:, 0] <= reach[NEIGHBOUR_BEAMS + 1]) & ~np.logical_or.reduce(near, axis=1)
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
@@ -201,8 +216,9 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # a beam that returned nothing or its background ages its candidate when a
         # neighbour returned that range: a surface at the edge of range, or behind a gap,
         # sparkles over the beams
-        aged, alone = _neighbours(c, r, seen, learn, ~seen | is_bg, state.angles, margin)
-        age = np.where(aged, age + dt, age)
+        reach = _reach(state.angles, margin)
+        age = np.where(_neighbour_returned(c, r, learn, ~seen | is_bg, reach, margin),
+                       age + dt, age)
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
         ripe = age >= cfg.confirm_time - 1e-6
@@ -211,8 +227,12 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         lately = known & (b_ago <= cfg.confirm_time)
         # nearer: after forget_time, or confirm_time for a return thinner than the beam
         # spacing (no person; a mixed return at an edge, a thin pole)
-        promote = learn & ((farther & ripe & ~lately)
-                           | (nearer & (alone & ripe | (age >= cfg.forget_time - 1e-6))))
+        long = age >= cfg.forget_time - 1e-6
+        wait = learn & nearer & ripe & ~long
+        if np.logical_or.reduce(wait):
+            thin = wait.nonzero()[0]
+            wait[thin] = ~_alone(r, thin, reach, margin)
+        promote = learn & ((farther & ripe & ~lately) | (nearer & (long | (ripe & ~wait))))
         second = learn & ripe & lately & ~promote
         b = np.where(promote, c, b)
         b_ago = np.where(promote, 0.0, b_ago)
