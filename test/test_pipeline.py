@@ -188,3 +188,19 @@ def test_minimal_protocol_object_is_enough():
     assert res.event is None and res.diagnostics['detections'] == 361
     assert isinstance(res.estimates.label, np.ndarray)
     _ = ScanData
+
+
+def test_a_scan_of_one_beam_runs_with_the_background_on():
+    """One beam has no neighbours: the background learns it on its own returns (a wall
+    3 m away, then something in front of it for a while), and nothing raises."""
+    cfg = from_dict({'background': {'enabled': True, 'forget_time': 2.0}})
+    state = PipelineState.initial(cfg)
+    for k in range(60):
+        r = 3.0 if k < 30 else 2.0
+        scan = ScanData(Header(Stamp(k // 10, (k % 10) * 100_000_000), 'laser'), 0.0, 0.0,
+                        0.01, 0.1, 10.0, np.array([r], dtype=np.float32))
+        state, res = step(state, scan, cfg)
+        assert res.event is None and res.error is None, (k, res.error)
+    assert res.diagnostics['beams'] == 1
+    assert state.background.background[0] == pytest.approx(2.0, abs=0.01)  # after 2 s
+

@@ -122,7 +122,10 @@ def _padded(a, fill):
 
 
 def _reach(angles, margin):
-    """Per offset: the range up to which that many beams are within ``margin`` across."""
+    """Per offset: the range up to which that many beams are within ``margin`` across
+    (0 for all of them in a scan of one beam: it has no neighbours)."""
+    if len(angles) < 2:
+        return np.zeros(len(_OFFSETS))
     return _PER_OFFSET * (margin / abs(float(angles[1] - angles[0])))
 
 
@@ -133,12 +136,11 @@ def _neighbour_returned(c, r, learn, idle, reach, margin):
     within ``margin`` across at its candidate's range (``reach``, :func:`_reach`), at
     most :data:`NEIGHBOUR_BEAMS` either side.
     """
-    n = len(c)
-    hit = np.zeros(n, dtype=bool)
+    hit = np.zeros(len(c), dtype=bool)
     src = learn.nonzero()[0]
-    if n < 2 or not len(src):
+    if not len(src):
         return hit
-    j = src[:, None] + _OFFSETS                        # padded index of each neighbour
+    j = src[:, None] + _OFFSETS                        # each return's neighbour beams
     cj = _padded(c, np.nan)[j + NEIGHBOUR_BEAMS]       # NaN (none, or off the scan): False
     ok = (_padded(idle, False)[j + NEIGHBOUR_BEAMS] & (np.abs(r[src, None] - cj) <= margin)
           & (cj <= reach))
