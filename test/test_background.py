@@ -446,3 +446,9 @@ def test_a_return_thinner_than_the_beam_spacing_in_front_of_the_wall_is_learned_
     assert state.background[15] == pytest.approx(3.5, abs=0.01)
     _, kept = _fan([wall] * 15 + [box] * 30, cfg)
     assert all(k[11:20].all() for k in kept[16:])     # 3 s in front of the wall: kept
+    # a thin return that flips with the wall behind it is the beam's second range, the
+    # wall stays its background (no wall returns let through meanwhile)
+    state, kept = _fan([wall] * 15 + [pole, wall] * 15, cfg)
+    assert state.background[15] == pytest.approx(4.0, abs=0.01)
+    assert state.second[15] == pytest.approx(3.5, abs=0.01)
+    assert not any(k[15] for k in kept[36:])

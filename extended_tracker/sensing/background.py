@@ -227,14 +227,14 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # the background returned within confirm_time: the beam flips between it and the
         # candidate (an object's edge, a thin post), so the candidate is a second range
         lately = known & (b_ago <= cfg.confirm_time)
-        # nearer: after forget_time, or confirm_time for a return thinner than the beam
+        # nearer: after forget_time, or once ripe for a return thinner than the beam
         # spacing (no person; a mixed return at an edge, a thin pole)
         long = age >= cfg.forget_time - 1e-6
-        wait = learn & nearer & ripe & ~long
-        if np.logical_or.reduce(wait):
-            thin = wait.nonzero()[0]
-            wait[thin] = ~_alone(r, thin, reach, margin)
-        promote = learn & ((farther & ripe & ~lately) | (nearer & (long | (ripe & ~wait))))
+        thin = learn & nearer & ripe & ~lately & ~long
+        if np.logical_or.reduce(thin):
+            which = thin.nonzero()[0]
+            thin[which] = _alone(r, which, reach, margin)
+        promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin)))
         second = learn & ripe & lately & ~promote
         b = np.where(promote, c, b)
         b_ago = np.where(promote, 0.0, b_ago)
