@@ -14,16 +14,17 @@ from extended_tracker.sim.laser import simulate, tutorial_scene
 # The tutorial scene has no static structure and a person standing from start-up, which a
 # per-beam background would learn: these tests run without it (test_background has it).
 CFG = from_dict({'background': {'enabled': False}})
+BG_CFG = from_dict({'background': {'enabled': True}})
 
 
 def scans(n=30, seed=0):
     return [s for s, _ in simulate(tutorial_scene(), n / 10.0, seed=seed)]
 
 
-def warm_state(k=20):
-    state = PipelineState.initial(CFG)
+def warm_state(k=20, cfg=CFG):
+    state = PipelineState.initial(cfg)
     for s in scans(k):
-        state, _ = step(state, s, CFG)
+        state, _ = step(state, s, cfg)
     return state
 
 
@@ -112,13 +113,10 @@ def test_gap_reinitialises_and_dt_is_never_negative():
 
 def test_a_time_gap_forgets_which_labels_moved():
     """The labels seen to move (they protect their returns) go with the tracks."""
-    cfg = from_dict({'background': {'enabled': True}})
-    data = scans(31)
-    state = PipelineState.initial(cfg)
-    for s in data[:30]:
-        state, _ = step(state, s, cfg)
+    state = warm_state(30, BG_CFG)
     assert len(state.moved) >= 1
-    state, res = step(state, with_stamp(data[30], state.last_stamp_ns + int(5e9)), cfg)
+    late = with_stamp(scans(31)[-1], state.last_stamp_ns + int(5e9))
+    state, res = step(state, late, BG_CFG)
     assert res.event == 'time_gap' and len(state.moved) == 0
 
 
@@ -132,14 +130,12 @@ def test_foreign_frame_is_answered_with_the_tracked_frame():
 
 
 def test_reset_drops_tracks_background_and_frame_and_ids_continue():
-    cfg = from_dict({'background': {'enabled': True}})
+    cfg = BG_CFG
     data = scans(70)
-    state = PipelineState.initial(cfg)
-    for s in data[:30]:
-        state, res = step(state, s, cfg)
-    assert len(res.estimates) >= 1 and state.background is not None
+    state = warm_state(30, cfg)                        # the first 30 of data
+    assert len(state.last_estimates) >= 1 and state.background is not None
     assert len(state.moved) >= 1                       # walkers that protect their returns
-    old_max = int(res.estimates.label.max())
+    old_max = int(state.last_estimates.label.max())
     fresh = reset(state, cfg)
     assert len(fresh.filter.mixture) == 0 and fresh.background is None
     assert len(fresh.moved) == 0
