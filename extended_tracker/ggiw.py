@@ -558,7 +558,11 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
     if nc == 0 or ncell == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     Gi = inv2(gate_covariance(mix, rho, R)) if gate_inv is None else gate_inv
-    e = stats.mean[None, :, :] - mix.m[:, None, :2]          # (nc, ncell, 2)
-    d2 = quad_form2(e, Gi[:, None])
-    comp, cell = (d2 < threshold).nonzero()
+    comp, cell = (gate_distance2(mix, stats.mean, Gi) < threshold).nonzero()
     return comp.astype(np.int64), cell.astype(np.int64)
+
+
+def gate_distance2(mix: Mixture, z: np.ndarray, gate_inv: np.ndarray) -> np.ndarray:
+    """(n, k) squared gate distance of each of the points ``z`` (k, 2) from each component's
+    predicted position, ``gate_inv`` the inverse of :func:`gate_covariance`."""
+    return quad_form2(z[None, :, :] - mix.m[:, None, :2], gate_inv[:, None])

@@ -34,7 +34,7 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import thin_cardinality
 from .errors import ScanError
-from .ggiw import gate_covariance, inv2, quad_form2
+from .ggiw import gate_covariance, gate_distance2, inv2
 from .memo import evolve
 from .sensing.background import BackgroundState, protected_beams, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
@@ -127,8 +127,7 @@ def _absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) 
     def gated(z):
         if not len(z):
             return np.zeros(len(mix), dtype=bool)
-        d2 = quad_form2(z[None, :, :] - mix.m[:, None, :2], gi[:, None])
-        return np.logical_or.reduce(d2 < threshold, axis=1)
+        return np.logical_or.reduce(gate_distance2(mix, z, gi) < threshold, axis=1)
 
     return gated(learned) & ~gated(points)
 
