@@ -32,10 +32,9 @@ restarted it and an edge beam of a post was never learned.
 
 Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
 person-sized and moved ``moved_distance`` beyond its first extent while seen: the caller
-decides) are never
-learned from where the background is known or the beam was seen free, so a person who
-walks in and stops stays tracked however long they stand, in front of a wall or of open
-space. A track that never moved protects nothing: a static object is learned like any
+decides) are never learned from where the background is known or the beam was seen
+free, so a person who walks in and stops stays tracked however long they stand, in
+front of a wall or of open space. A track that never moved protects nothing: a static object is learned like any
 other (after ``confirm_time`` behind the known background or where it is unknown,
 ``forget_time`` in front of it), however it is tracked meanwhile. (Protected by their own
 static tracks, furniture revealed behind something learned at start-up on the MiR
