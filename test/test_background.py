@@ -349,25 +349,34 @@ def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
     assert len(labels) == 1
 
 
+def _fan(ranges_per_scan, cfg, n_beams=31):
+    """Feed whole scans of ranges (0.35 deg apart) with nothing protected; the keep-masks
+    over the beams (True: the beam's return reached the filter)."""
+    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
+    (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
+    state, kept = None, []
+    for ranges in ranges_per_scan:
+        scan.ranges = np.asarray(ranges, dtype=np.float32)
+        sp = scan_to_points(scan)
+        state, keep = update_background(state, sp, 0.1, cfg, np.zeros(n_beams, bool))
+        beam_kept = np.zeros(n_beams, bool)
+        beam_kept[sp.beam[keep]] = True
+        kept.append(beam_kept)
+    return state, kept
+
+
 def _sparkle(ranges_of, n_scans, cfg, n_beams=31, seed=0, otherwise=np.inf, first=0):
     """
     Beams 0.35 deg apart (3 cm at 5 m) that return ``otherwise`` (default: nothing) in
     the ``first`` scans, and then each ``ranges_of(beam)`` in a random fifth of the scans
-    and ``otherwise`` in the others; the keep-mask of every scan's ``ranges_of`` returns.
+    and ``otherwise`` in the others (fed by :func:`_fan`); the keep-mask of every scan's
+    ``ranges_of`` returns.
     """
     rng = np.random.default_rng(seed)
-    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
-    (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
-    target = np.array([ranges_of(b) for b in range(n_beams)], dtype=np.float32)
-    state, kept = None, []
-    no = np.zeros(n_beams, bool)
-    for k in range(n_scans):
-        hit = (rng.random(n_beams) < 0.2) & (k >= first)
-        scan.ranges = np.where(hit, target, otherwise).astype(np.float32)
-        sp = scan_to_points(scan)
-        state, keep = update_background(state, sp, 0.1, cfg, no)
-        kept.append(keep[hit[sp.beam]])
-    return state, kept
+    target = np.array([ranges_of(b) for b in range(n_beams)])
+    hits = [(rng.random(n_beams) < 0.2) & (k >= first) for k in range(n_scans)]
+    state, kept = _fan([np.where(hit, target, otherwise) for hit in hits], cfg, n_beams)
+    return state, [k[hit] for k, hit in zip(kept, hits)]
 
 
 def test_a_surface_that_sparkles_over_the_beams_is_learned_from_all_of_them():
@@ -409,22 +418,6 @@ def test_a_gap_that_shows_the_wall_now_and_then_is_learned_from_all_its_beams():
     lone = from_dict({'background': {'margin': 0.005}}).background
     _, kept = _sparkle(lambda b: 4.9, 75, lone, otherwise=2.2, first=15)
     assert np.mean(np.concatenate(kept[45:60])) > 0.5
-
-
-def _fan(ranges_per_scan, cfg, n_beams=31):
-    """Feed whole scans of ranges (0.35 deg apart) with nothing protected; the keep-masks
-    over the beams (True: the beam's return reached the filter)."""
-    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
-    (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
-    state, kept = None, []
-    for ranges in ranges_per_scan:
-        scan.ranges = np.asarray(ranges, dtype=np.float32)
-        sp = scan_to_points(scan)
-        state, keep = update_background(state, sp, 0.1, cfg, np.zeros(n_beams, bool))
-        beam_kept = np.zeros(n_beams, bool)
-        beam_kept[sp.beam[keep]] = True
-        kept.append(beam_kept)
-    return state, kept
 
 
 def test_a_return_thinner_than_the_beam_spacing_in_front_of_the_wall_is_learned_when_ripe():
