@@ -135,23 +135,28 @@ def test_object_that_appears_and_never_moves_in_open_space_is_learned():
     assert all(res.diagnostics['background_dropped'] > 0 for _, res in hist[60:])
 
 
+def _report(state, x, detections=5, semi=None):
+    """``state``'s report record after label 7 is extracted at (x, 0) with ``detections``
+    returns (and a semi-major axis ``semi``, 0.1 m semi-minor, if given)."""
+    est = estimates([7], [[x, 0.0]])
+    est.num_detections[:] = detections
+    if semi is not None:
+        est.X[:] = np.diag([semi ** 2, 0.01])
+    return _record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
+
+
 def test_travel_that_protects_counts_only_scans_with_returns():
     """A label coasting on its predicted velocity has not moved: its drift is not travel."""
-    def report(state, x, detections):
-        est = estimates([7], [[x, 0.0]])
-        est.num_detections[:] = detections
-        return _record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
-
     state = FilterState.initial(from_dict({}))
-    state = report(state, 0.0, 5)
+    state = _report(state, 0.0, 5)
     for k in range(1, 11):                               # drifts 1 m with no returns
-        state = report(state, 0.1 * k, 0)
+        state = _report(state, 0.1 * k, 0)
     assert state.reported_scans[0] == 11 and state.reported_hits[0] == 1
     scans_alone = from_dict({'extraction': {'confirm_detections': 0}}).extraction
     assert state.confirmed_travel(np.array([7, 8]), scans_alone).tolist() == [0.0, -1.0]
     # by default returns must have updated it in two of its scans: one is not enough
     assert state.confirmed_travel(np.array([7]), from_dict({}).extraction).tolist() == [-1.0]
-    state = report(state, 1.2, 3)                        # seen again 1.2 m away
+    state = _report(state, 1.2, 3)                        # seen again 1.2 m away
     assert np.allclose(state.confirmed_travel(np.array([7]), from_dict({}).extraction), 1.2)
     not_yet = from_dict({'extraction': {'confirm_scans': 13}}).extraction
     assert state.confirmed_travel(np.array([7]), not_yet).tolist() == [-1.0]  # not 13 in a row
@@ -163,18 +168,12 @@ def test_travel_is_counted_beyond_the_first_extent():
     shift by up to its own size (MiR furniture: 0.55 m in 1.2 s): that is not travel. Travel
     counts beyond the semi-major axis the label was first reported with.
     """
-    def report(state, x, semi):
-        est = estimates([7], [[x, 0.0]])
-        est.X[:] = np.diag([semi ** 2, 0.01])
-        est.num_detections[:] = 5
-        return _record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
-
     ex = from_dict({'extraction': {'confirm_detections': 0}}).extraction
-    state = report(FilterState.initial(from_dict({})), 0.0, 0.5)
+    state = _report(FilterState.initial(from_dict({})), 0.0, semi=0.5)
     for x in np.linspace(0.05, 0.55, 11):                # the centre creeps 0.55 m
-        state = report(state, x, 0.3)                      # while the extent shrinks
+        state = _report(state, x, semi=0.3)                # while the extent shrinks
     assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.05)
-    state = report(state, 1.2, 0.3)                        # then it really goes
+    state = _report(state, 1.2, semi=0.3)                  # then it really goes
     assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.7)
 
 
