@@ -37,7 +37,8 @@ from .config import from_dict
 from .pipeline import PipelineState, step
 from .sensing.scan import scan_to_points
 from .sim.laser import crowd_scene, mixed_traffic_scene, Scene, simulate, tutorial_scene
-from .tracker import FilterState, filter_step
+from .state import FilterState
+from .tracker import filter_step
 
 
 def stress_scene() -> Scene:

@@ -484,7 +484,7 @@ def thin_cardinality(log_card: np.ndarray, removed: float) -> np.ndarray:
     The cardinality pmf after ``removed`` expected objects are taken away: whole objects
     one at a time, the last with the fractional remainder as its probability
     (``p'(n) = (1 - f) p(n) + f p(n + 1)``, ``p'(0)`` also gaining ``f p(1)``). Used when
-    two tracks are found to be one object (``tracker._join_parts``).
+    two tracks are found to be one object (``identity.join_pairs``).
 
     Each step is a convex combination of neighbouring entries, so it runs on the pmf
     scaled by its largest entry: nothing that matters underflows.

@@ -39,8 +39,8 @@ from .memo import evolve
 from .sensing.background import BackgroundState, protected_beams, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability
-from .tracker import (_find_sorted, Estimates, FilterState, gate_threshold, predict_state,
-                      sensor_noise, StepDiagnostics, update_state)
+from .state import Estimates, FilterState, find_sorted, StepDiagnostics
+from .tracker import gate_threshold, predict_state, sensor_noise, update_state
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame')
 
@@ -232,10 +232,10 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         # travel) restarts after a scan it was not reported in (a walker who stops just
         # after a scan with both legs hidden)
         travel = filt.confirmed_travel(est.label, cfg.extraction)
-        moved = np.union1d(moved[_find_sorted(filt.shown, moved)[1]],
+        moved = np.union1d(moved[find_sorted(filt.shown, moved)[1]],
                            est.label[travel >= bgc.moved_distance])
         major = est.axes()[0] if len(est) else np.zeros(0)
-        guard = _find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
+        guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
         prot = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate)
         background, keep = update_background(background, sp, dt, bgc, prot)
         bg_points = points[~keep]

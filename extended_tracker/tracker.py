@@ -1,220 +1,36 @@
 """
 One filter step of the GGIW-CPHD (or PHD) tracker on Cartesian detections.
 
-The state is data (:class:`FilterState`), passed in and returned. The laser front end and
-the per-scan pipeline (:mod:`extended_tracker.pipeline`) call :func:`predict_state` and
-:func:`update_state`; synthetic tests may call :func:`filter_step` directly.
+The state is data (:class:`~extended_tracker.state.FilterState`), passed in and returned.
+The laser front end and the per-scan pipeline (:mod:`extended_tracker.pipeline`) call
+:func:`predict_state` and :func:`update_state`; synthetic tests may call
+:func:`filter_step` directly. What happens to the labels between extraction and report
+(confirmation, jumps, hand-over, joined parts, grouped pieces) is in
+:mod:`extended_tracker.identity`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import numpy as np
 
 
-from .config import ExtractionConfig, TrackerConfig
+from .config import TrackerConfig
 from .cphd import (
     cphd_update, phd_update, poisson_log_pmf, predict_cardinality, resize_cardinality,
-    thin_cardinality,
 )
 from .ggiw import (
     cell_stats, eig2, einsum, gate_covariance, gate_pairs, group_heads, inv2, IW_OFFSET,
     log_miss_factor, Mixture, predict, update_pairs, weight_key,
 )
-from .memo import cached_tables, evolve, read_only
+from .identity import (
+    group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
+)
+from .memo import cached_tables, evolve
 from .partition import build_partitions, find_root, union_min
-from .reduction import join_parts, reduce_mixture
-
-NEG_INF = -np.inf
-NO_LABELS = read_only(np.zeros(0, np.int64))[0]
-# a thin contour piece (see group_segments): semi-minor axis at most this, semi-major at least
-SEGMENT_MAX_SEMI_MINOR = 0.15        # m
-SEGMENT_MIN_SEMI_MAJOR = 0.5         # m
-
-
-@dataclass(frozen=True)
-class Estimates:
-    """
-    Reported objects of one scan, arrays with a leading object axis of length ``k``.
-
-    Attributes
-    ----------
-    label : (k,) int64
-    existence : (k,) weight of the label, clipped to [0, 1]
-    m : (k, 4) kinematic mean; P : (k, 4, 4) its covariance
-    X : (k, 2, 2) expected extent matrix (m^2)
-    rate : (k,) expected detections per scan
-    num_detections : (k,) detections that updated the label this scan
-    visibility : (k,) visible fraction used for p_D (1 where not computed)
-
-    """
-
-    label: np.ndarray
-    existence: np.ndarray
-    m: np.ndarray
-    P: np.ndarray
-    X: np.ndarray
-    rate: np.ndarray
-    num_detections: np.ndarray
-    visibility: np.ndarray
-
-    def __len__(self):
-        return int(self.label.shape[0])
-
-    def take(self, idx) -> 'Estimates':
-        """The objects at ``idx`` (index array or boolean mask)."""
-        return Estimates(self.label[idx], self.existence[idx], self.m[idx], self.P[idx],
-                         self.X[idx], self.rate[idx], self.num_detections[idx],
-                         self.visibility[idx])
-
-    def axes(self):
-        """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""
-        return self._axes
-
-    @cached_property
-    def _axes(self):
-        # computed once per scan's estimates, read by messages, markers, shapes and plots
-        # (shared, so read-only)
-        lam1, lam2 = eig2(self.X)
-        yaw = 0.5 * np.arctan2(2 * self.X[:, 0, 1], self.X[:, 0, 0] - self.X[:, 1, 1])
-        return read_only(np.sqrt(lam1), np.sqrt(np.maximum(lam2, 0.0)), yaw)
-
-    def rectangle(self):
-        """
-        Length and width of the oriented rectangle with the ellipse's second moments.
-
-        Notes
-        -----
-        A filled ellipse of semi-axis ``a`` has second moment ``a^2/4`` along it; a filled
-        rectangle of side ``L`` has ``L^2/12``; equal moments give ``L = sqrt(3) a``.
-        """
-        major, minor, _ = self.axes()
-        return np.sqrt(3.0) * major, np.sqrt(3.0) * minor
-
-    @staticmethod
-    def empty():
-        """Return estimates with no object."""
-        return Estimates(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 4)),
-                         np.zeros((0, 4, 4)), np.zeros((0, 2, 2)), np.zeros(0),
-                         np.zeros(0, np.int64), np.zeros(0))
-
-
-@dataclass(frozen=True)
-class FilterState:
-    """
-    Everything the filter carries from one scan to the next.
-
-    Attributes
-    ----------
-    mixture : Mixture
-        Posterior GGIW mixture.
-    log_card : (N_max + 1,) array
-        Posterior cardinality pmf (log).
-    next_label : int
-        Next unused track label.
-    reported : (r,) int64 array
-        Labels extracted in the last scan, ascending (reported once confirmed, see
-        :meth:`confirmed_rows`); ``reported_scans`` counts consecutive scans,
-        ``reported_hits`` how many of those returns updated it in (its birth scan
-        included; a label split off another's far component counts from its next scan,
-        the returns of the split scan having updated the other label),
-        ``reported_origin`` (r, 2) is where each was first reported, ``reported_size``
-        (r,) its semi-major axis then, and ``reported_travel`` (r,) the farthest it has
-        been from there in a scan where returns updated it (m; coasting drift does not
-        count).
-    shown : (s,) int64 array
-        Labels ever reported (shown to the user) that are still in the mixture or were
-        shown less than ``extraction.handover_time`` ago, ascending; ``shown_pos`` (s, 2)
-        is where each was last shown, ``shown_vel`` (s, 2) its velocity then and
-        ``shown_elapsed`` (s,) how long ago (s). A label's next report must be reachable
-        from there within ``extraction.max_speed`` and ``extraction.max_accel`` or it is a
-        new object.
-    label_clock : tuple of (float, int)
-        ``(seconds ago, next_label then)`` at the start of each scan of the last
-        ``extraction.handover_time`` seconds, oldest first: labels from the first
-        ``next_label`` on were created in that time.
-    pairs : (k, 2) int64 array
-        Pairs of labels (smaller first) extracted as close parts in the last scan, and
-        ``pair_runs`` (k,) in how many scans in a row (see :func:`_join_parts`).
-
-    """
-
-    mixture: Mixture
-    log_card: np.ndarray
-    next_label: int = 1
-    reported: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    reported_scans: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    reported_origin: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    reported_travel: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    reported_size: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    reported_hits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    shown: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    shown_pos: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    shown_vel: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    shown_elapsed: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    label_clock: tuple = ()
-    pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
-    pair_runs: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
-    dt: float = 0.1
-
-    @staticmethod
-    def initial(cfg: TrackerConfig) -> 'FilterState':
-        """An empty scene: no components, cardinality certainly zero."""
-        log_card = np.full(cfg.model.n_max + 1, NEG_INF)
-        log_card[0] = 0.0
-        return FilterState(Mixture.empty(), log_card)
-
-    def confirmed_rows(self, ex: ExtractionConfig) -> np.ndarray:
-        """
-        Which ``reported`` labels are confirmed: extracted ``ex.confirm_scans`` scans in a
-        row and updated by returns in ``ex.confirm_detections`` of them (M of N).
-
-        A static spot that returns now and then (a far edge, a half-seen table leg) makes a
-        label from one scan's returns that the filter keeps extracting for a few scans
-        while it coasts; counting the scans alone showed it as an object for a scan or two,
-        again each time the spot returned.
-        """
-        return ((self.reported_scans >= ex.confirm_scans)
-                & (self.reported_hits >= ex.confirm_detections))
-
-    def confirmed_travel(self, labels: np.ndarray, ex: ExtractionConfig) -> np.ndarray:
-        """
-        How far (m) each of ``labels`` has travelled beyond its own first extent (its
-        semi-major axis when first reported), for those confirmed (:meth:`confirmed_rows`);
-        -1 for the others. A static object whose returns are learned as background one
-        side after the other sees its centre shift by up to its own size; that is not
-        travel.
-        """
-        out = np.full(len(labels), -1.0)
-        if len(labels) and len(self.reported):
-            at, found = _find_sorted(self.reported, labels)
-            ok = found & self.confirmed_rows(ex)[at]
-            out[ok] = np.maximum(self.reported_travel[at[ok]] - self.reported_size[at[ok]],
-                                 0.0)
-        return out
-
-
-@dataclass
-class StepDiagnostics:
-    """Counts of one filter step (filled by update_state)."""
-
-    detections: int = 0
-    partitions: int = 0
-    cells: int = 0
-    pairs: int = 0
-    components: int = 0
-    births: int = 0
-    capped_partitions: int = 0
-    capped_cells: int = 0
-    capped_components: int = 0
-    oversized: int = 0
-    fused_labels: int = 0
-    joined_labels: int = 0
-    relabelled: int = 0
-    handed_over: int = 0
-    grouped: int = 0
+from .reduction import reduce_mixture
+from .state import Estimates, FilterState, find_sorted, NEG_INF, NO_LABELS, StepDiagnostics
 
 
 def sensor_noise(cfg: TrackerConfig) -> np.ndarray:
@@ -375,7 +191,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     state : FilterState
     estimates : Estimates
         The confirmed labels, with the thin pieces of one contour reported as one object
-        (:func:`group_segments`).
+        (:func:`identity.group_segments`).
     diagnostics : StepDiagnostics
 
     Raises
@@ -503,419 +319,27 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     new_state = evolve(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
     candidates = extract(new_state, cfg, n_det, vis_of)
-    new_state, candidates, diag.relabelled = _relabel_jumps(state, new_state, candidates, cfg)
-    new_state, candidates, record, diag.handed_over = _hand_over(state, new_state, candidates,
-                                                                 cfg)
-    new_state = _record_reports(record, new_state, candidates)
+    new_state, candidates, diag.relabelled = relabel_jumps(state, new_state, candidates, cfg)
+    new_state, candidates, record, diag.handed_over = hand_over(state, new_state, candidates,
+                                                                cfg)
+    new_state = record_reports(record, new_state, candidates)
     joined = forming = NO_LABELS
     if cfg.reduction.pair_scans:
-        new_state, candidates, joined, forming = _join_parts(new_state, candidates, cfg)
+        new_state, candidates, joined, forming = join_pairs(new_state, candidates, cfg)
         diag.joined_labels = len(joined)
     # report a label once confirmed (M of N); a part never shown waits while its pair forms
     confirmed = new_state.confirmed_rows(cfg.extraction)
     if len(forming):
-        confirmed &= ~(_find_sorted(np.sort(forming), candidates.label)[1]
-                       & ~_find_sorted(state.shown, candidates.label)[1])
+        confirmed &= ~(find_sorted(np.sort(forming), candidates.label)[1]
+                       & ~find_sorted(state.shown, candidates.label)[1])
     shown = candidates.take(confirmed)
-    new_state = _remember_shown(state, new_state, shown, cfg.extraction.handover_time, joined)
+    new_state = remember_shown(state, new_state, shown, cfg.extraction.handover_time, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
     shown, diag.grouped = group_segments(shown, new_state.reported_scans[confirmed],
                                          cfg.extraction.group_gap,
                                          cfg.extraction.group_speed)
     return new_state, shown, diag
-
-
-def _join_parts(state: FilterState, est: Estimates, cfg: TrackerConfig):
-    """
-    Make one track of two extracted labels that have stayed together as parts of one
-    object (a walker's two legs).
-
-    Two extracted labels are a candidate pair when one of them is part-sized (semi-major
-    axis at most ``reduction.pair_semi_axis``), their centres are within
-    ``reduction.pair_distance`` and their velocities differ by at most
-    ``reduction.pair_speed`` (nearest pairs first, one to one). A pair that has been one
-    in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
-    heaviest components become one (:func:`join_parts`) under the senior label (reported
-    in more scans in a row; then the smaller label) and the other label's components are
-    dropped. The junior label leaves the estimates, the report record and (in
-    :func:`_remember_shown`) the shown record. The junior of a pair still forming is
-    returned too: a label never shown waits to be shown while its pair forms
-    (:func:`update_state`), so a part born beside its object is joined before it is ever
-    shown, also when the pair forms a scan or two after its birth. In CPHD mode the
-    cardinality pmf loses the dropped weight (:func:`cphd.thin_cardinality`). The
-    senior's estimate this scan is as extracted; the next scan starts from the joined
-    component.
-
-    ``state``'s report record must be ``est``'s (:func:`_record_reports`). Returns the
-    state, the estimates, the junior labels joined (ascending) and the juniors of the
-    pairs still forming.
-
-    Notes
-    -----
-    A scanner at leg height sees a walker as two legs. The filter often tracks each leg
-    on its own: sub-partitioning then keeps them apart, since it splits a cell among the
-    confident tracks that gate it (which is what keeps two people apart). A walker
-    tracked as one ellipse is split again when a wide stride puts its legs in cells of
-    their own: the far leg is born anew next to it. A walker's legs stay within about
-    0.6 m of each other, and one swings at up to twice the walking speed while the other
-    stands. Pairing leg-sized reports into one report scan by scan, without a record,
-    made the report change label whenever the stride took the legs apart.
-    """
-    rc = cfg.reduction
-    joined = forming = NO_LABELS
-    pairs, runs = np.zeros((0, 2), np.int64), NO_LABELS
-    if len(est) > 1:
-        semi = est.axes()[0]
-        i, j = np.triu_indices(len(est), 1)
-        d = est.m[i, :2] - est.m[j, :2]
-        dv = est.m[i, 2:] - est.m[j, 2:]
-        d2 = np.add.reduce(d * d, axis=1)
-        ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
-              & (d2 <= rc.pair_distance ** 2)
-              & (np.add.reduce(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
-        taken, rows = set(), []
-        for k in ok[d2[ok].argsort(kind='stable')].tolist():
-            if i[k] not in taken and j[k] not in taken:
-                taken.update((i[k], j[k]))
-                rows.append((i[k], j[k]))
-        rows = np.array(rows, dtype=np.int64).reshape(-1, 2)
-        pairs = est.label[rows]                        # labels ascending: smaller first
-        runs = np.ones(len(rows), np.int64)
-        for n, (a, b) in enumerate(pairs.tolist()):
-            was = ((state.pairs[:, 0] == a) & (state.pairs[:, 1] == b)).nonzero()[0]
-            if len(was):
-                runs[n] += state.pair_runs[was[0]]
-        # senior first in each row: reported in more scans in a row, then the smaller label
-        swap = state.reported_scans[rows[:, 1]] > state.reported_scans[rows[:, 0]]
-        rows[swap] = rows[swap][:, ::-1]
-        ready = runs >= rc.pair_scans
-        forming = est.label[rows[~ready, 1]]
-        if np.logical_or.reduce(ready):
-            state, est, joined = _join(state, est, rows[ready], cfg)
-            pairs, runs = pairs[~ready], runs[~ready]
-    return evolve(state, pairs=pairs, pair_runs=runs), est, joined, forming
-
-
-def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConfig):
-    """Join the labels of each pair of ``est`` rows (see :func:`_join_parts`)."""
-    mix = state.mixture
-    order, is_head, _ = mix.by_label()
-    labels, _, weight = mix.per_label()
-    heads = order[is_head]
-    drop = np.zeros(len(mix), dtype=bool)
-    joined, junior_rows, removed = [], [], 0.0
-    for a, b in rows.tolist():                         # the senior first
-        at = labels.searchsorted(est.label[[a, b]])
-        w = weight[at]
-        joined.append(join_parts(mix, heads[at], w, int(est.label[a])))
-        drop |= (mix.label == est.label[a]) | (mix.label == est.label[b])
-        junior_rows.append(b)
-        removed += float(w.sum() - w.max())
-    log_card = state.log_card
-    if cfg.model.mode == 'cphd':
-        log_card = thin_cardinality(log_card, removed)
-    keep = np.ones(len(est), dtype=bool)
-    keep[junior_rows] = False
-    state = evolve(state, mixture=Mixture.concat([mix.take(~drop)] + joined),
-                   log_card=log_card, reported=state.reported[keep],
-                   reported_scans=state.reported_scans[keep],
-                   reported_origin=state.reported_origin[keep],
-                   reported_travel=state.reported_travel[keep],
-                   reported_size=state.reported_size[keep],
-                   reported_hits=state.reported_hits[keep])
-    return state, est.take(keep), np.sort(est.label[~keep])
-
-
-def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):
-    """
-    Report the thin pieces of one object's contour as that object.
-
-    A laser sees a car across a corner as an L: its long side and its end. Two thin
-    ellipses explain those returns far better than one ellipse over the car does (the
-    model spreads detections over the extent, the scanner sees the contour), so the filter
-    tracks two thin objects. Pieces at most ``SEGMENT_MAX_SEMI_MINOR`` thick and at least
-    ``SEGMENT_MIN_SEMI_MAJOR`` long whose ends are within ``gap`` of each other and whose
-    velocities differ by at most ``speed`` are reported as one object: the rectangle
-    around them in the frame of the longest piece (its extent the rectangle's second
-    moments), moving at their rate-weighted velocity, under the label of the most senior
-    piece (the most ``seniority``, reported scans in a row; then the smaller label), its
-    position covariance that piece's. Existence and visibility are the pieces' largest,
-    rate and detections their sums.
-
-    Returns the estimates (ascending labels) and the number of pieces grouped into
-    another's report.
-    """
-    k = len(est)
-    if gap <= 0 or k < 2:
-        return est, 0
-    # the semi-major axis squared is at most the trace: people are ruled out at once
-    X = est.X
-    long_ = (X[:, 0, 0] + X[:, 1, 1] >= SEGMENT_MIN_SEMI_MAJOR ** 2).nonzero()[0]
-    if len(long_) < 2:
-        return est, 0
-    major, minor, yaw = (a[long_] for a in est.axes())
-    thin = (minor <= SEGMENT_MAX_SEMI_MINOR) & (major >= SEGMENT_MIN_SEMI_MAJOR)
-    seg, major, minor, yaw = long_[thin], major[thin], minor[thin], yaw[thin]
-    if len(seg) < 2:
-        return est, 0
-    u = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
-    half = (0.5 * np.sqrt(3.0)) * major                # half the rectangle's length
-    centre = est.m[seg, :2]
-    ends = np.concatenate([centre + half[:, None] * u, centre - half[:, None] * u])  # (2s, 2)
-    s = len(seg)
-    d = ends[:, None, :] - ends[None, :, :]
-    d = np.sqrt(np.add.reduce(d * d, axis=2)).reshape(2, s, 2, s).min(axis=(0, 2))
-    dv = est.m[seg, None, 2:] - est.m[None, seg, 2:]
-    dv = np.sqrt(np.add.reduce(dv * dv, axis=2))
-    near = (d <= gap) & (dv <= speed)
-    np.fill_diagonal(near, False)
-    if not near.any():
-        return est, 0
-    parent = list(range(s))
-    for i, j in zip(*near.nonzero()):
-        union_min(parent, int(i), int(j))
-    roots = np.array([find_root(parent, i) for i in range(s)])
-    keep = np.ones(k, dtype=bool)
-    out = Estimates(est.label.copy(), est.existence.copy(), est.m.copy(), est.P.copy(),
-                    est.X.copy(), est.rate.copy(), est.num_detections.copy(),
-                    est.visibility.copy())
-    grouped = 0
-    for r in np.unique(roots):
-        members = (roots == r).nonzero()[0]
-        if len(members) < 2:
-            continue
-        rows = seg[members]
-        # the longest piece carries the report (ungrouped, it is the one nearest the
-        # object), then the most senior: most scans in a row, then the oldest
-        head = rows[np.lexsort((est.label[rows], -seniority[rows], -major[members]))[0]]
-        ux, uy = u[members[np.argmax(major[members])]]
-        frame = np.array([[ux, -uy], [uy, ux]])        # the longest piece's axis, its normal
-        pts = np.concatenate([ends[members], ends[s + members]]) @ frame
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
-        length = hi[0] - lo[0]
-        width = hi[1] - lo[1] + np.sqrt(3.0) * minor[members].max()
-        w = np.maximum(est.rate[rows], 1e-9)
-        out.m[head, :2] = frame @ (0.5 * (lo + hi))
-        out.m[head, 2:] = (w[:, None] * est.m[rows, 2:]).sum(axis=0) / w.sum()
-        out.X[head] = frame @ np.diag([length ** 2 / 3.0, width ** 2 / 3.0]) @ frame.T
-        out.existence[head] = est.existence[rows].max()
-        out.visibility[head] = est.visibility[rows].max()
-        out.rate[head] = est.rate[rows].sum()
-        out.num_detections[head] = est.num_detections[rows].sum()
-        keep[rows] = False
-        keep[head] = True
-        grouped += len(rows) - 1
-    return out.take(keep), grouped
-
-
-def _relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerConfig):
-    """
-    Give a new label to each extracted label that could not have got where it is.
-
-    A label last shown at ``p`` ``t`` seconds ago and now extracted at ``q`` moved at
-    least ``|q - p| / t``. Farther than ``extraction.max_speed * t +
-    extraction.jump_slack`` it is not the object that was shown: a track that coasted
-    unseen while its position uncertainty grew to metres has taken the returns of a
-    newcomer (the CV model's white acceleration lets it; a walker does not run at
-    6 m/s). Likewise when ``q`` is farther than ``extraction.max_accel * t^2 / 2 +
-    jump_slack`` from ``p + v t``, ``v`` the velocity it was shown with: an object at
-    rest does not cover 3 m in 0.4 s. The estimate stays where the filter put it, under
-    a fresh label that must be confirmed like any new object, and the old id is not
-    reused.
-
-    Returns the state (mixture relabelled, ``next_label`` advanced), the estimates (still
-    in ascending label order) and the number of labels changed.
-
-    Notes
-    -----
-    Seen on the leg_tracker positive_1 recording: ids that jumped 4.2 m in 0.4 s and
-    8.6 m in 1.2 s (since last shown) onto people who had just entered. On the
-    obstacle_detector recording, tracks on static posts jumped 3-4 m to another post
-    within the default 15 m/s.
-    """
-    if not len(old.shown) or not len(est):
-        return new, est, 0
-    ex = cfg.extraction
-    at, known = _find_sorted(old.shown, est.label)
-    d = est.m[:, :2] - old.shown_pos[at]
-    t = old.shown_elapsed[at] + new.dt
-    jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1)) > _speed_reach(ex, t))
-    if ex.max_accel > 0:
-        d -= old.shown_vel[at] * t[:, None]          # from where its velocity carried it
-        jumped |= known & (np.sqrt(np.add.reduce(d * d, axis=1))
-                           > 0.5 * ex.max_accel * t * t + ex.jump_slack)
-    if not np.logical_or.reduce(jumped):
-        return new, est, 0
-    bad = est.label[jumped]
-    fresh = new.next_label + np.arange(len(bad))
-    mix = new.mixture
-    label = mix.label.copy()
-    at, hit = _find_sorted(bad, label)                   # est.label is ascending
-    label[hit] = fresh[at[hit]]
-    est_label = est.label.copy()
-    est_label[jumped] = fresh
-    # the fresh labels are the largest: move them to the end, so the estimates stay in
-    # ascending label order as extract gives them (the shown record searches them)
-    order = est_label.argsort(kind='stable')
-    return (evolve(new, mixture=evolve(mix, label=label),
-                   next_label=new.next_label + len(bad)),
-            evolve(est, label=est_label).take(order), len(bad))
-
-
-def _speed_reach(ex, t):
-    """How far an id may be from where it was shown ``t`` seconds ago under the speed
-    limit: ``extraction.max_speed * t + extraction.jump_slack``."""
-    return ex.max_speed * t + ex.jump_slack
-
-
-def _remember_shown(old: FilterState, new: FilterState, shown: Estimates,
-                    handover_time: float = 0.0, joined=NO_LABELS) -> FilterState:
-    """
-    Where, at what velocity and how long ago each label was last shown: labels still in
-    the mixture, and those shown less than ``handover_time`` ago (they may be handed
-    over, see :func:`_hand_over`), but not the ``joined`` labels (ascending): they are
-    part of another object now, not lost (:func:`_join_parts`). Also the label counter
-    of the last ``handover_time`` seconds.
-    """
-    alive = new.mixture.per_label()[0]                 # ascending, cached by extract
-    elapsed = old.shown_elapsed + new.dt
-    keep = ((_find_sorted(alive, old.shown)[1] | (elapsed <= handover_time))
-            & ~_find_sorted(shown.label, old.shown)[1])
-    if len(joined):
-        keep &= ~_find_sorted(joined, old.shown)[1]
-    label = np.concatenate([old.shown[keep], shown.label])
-    pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
-    vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
-    elapsed = np.concatenate([elapsed[keep], np.zeros(len(shown))])
-    order = label.argsort(kind='stable')
-    dt = new.dt
-    clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
-    return evolve(new, shown=label[order], shown_pos=pos[order], shown_vel=vel[order],
-                  shown_elapsed=elapsed[order], label_clock=clock + ((0.0, old.next_label),))
-
-
-def _hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerConfig):
-    """
-    Give a lost id to a young object that appeared where the lost one would be.
-
-    A label shown less than ``extraction.handover_time`` ago that is not extracted now is
-    lost. A label created less than ``handover_time`` ago and extracted now is young. A
-    young label within ``extraction.handover_distance`` of a lost label's last shown
-    position, carried on at its last shown velocity, takes the lost label (nearest pairs
-    first, one to one), unless the speed limit of :func:`_relabel_jumps` would call the
-    move a jump, or the lost label is the newer of the two: an id passes only to a label
-    created after it. Established labels never take another's id, so two tracked objects
-    that pass each other keep theirs.
-
-    In the mixture the two labels swap: the young object's components carry the old id
-    on, the lost label's fading components carry the young one. The young label's report
-    count passes to the old id when the old id was not extracted in the last scan, so a
-    handed-over id is confirmed as the young one would have been.
-
-    Returns the state, the estimates (ascending labels), the report record to continue
-    from (``old`` with the young labels' counts renamed) and the number of handovers.
-
-    Notes
-    -----
-    Seen at leg height (the leg_tracker demo): a walker tracked on one leg while the other
-    is hidden; the other leg steps out 0.3-0.5 m ahead, is split off under a new label,
-    and the first leg's track fades when that leg is hidden in turn. Without a handover
-    the walker changes id at every such step. On the Freiburg recording two young labels
-    on one walker, just after the background warm-up, traded ids every scan for 26 scans
-    (the one extracted took the id of the other, shown the scan before) until both were
-    older than the window; an id passing only to a newer label ends that.
-    """
-    window = cfg.extraction.handover_time
-    if window <= 0 or not len(old.shown) or not len(est):
-        return new, est, old, 0
-    dt = new.dt
-    extracted = set(est.label.tolist())
-    lost = [i for i, (lab, ago) in enumerate(zip(old.shown.tolist(),
-                                                 old.shown_elapsed.tolist()))
-            if ago + dt <= window and lab not in extracted]
-    if not lost:
-        return new, est, old, 0
-    # labels created this scan are >= old.next_label, earlier ones in the window >= the
-    # counter at the window's start
-    first_young = next((lab for ago, lab in old.label_clock if ago + dt <= window),
-                       old.next_label)
-    young = (est.label >= first_young).nonzero()[0]
-    if not len(young):
-        return new, est, old, 0
-    ex = cfg.extraction
-    lost = np.array(lost)
-    elapsed = old.shown_elapsed[lost] + dt
-    pos, last = est.m[young, None, :2], old.shown_pos[None, lost]
-    d = pos - (last + old.shown_vel[None, lost] * elapsed[None, :, None])
-    dist = np.sqrt(np.add.reduce(d * d, axis=2))       # (young, lost)
-    # and never farther than the speed limit lets an id move (see _relabel_jumps)
-    d = pos - last
-    reach = _speed_reach(ex, elapsed)
-    near = ((dist <= ex.handover_distance)
-            & (np.sqrt(np.add.reduce(d * d, axis=2)) <= reach[None, :])
-            & (est.label[young][:, None] > old.shown[lost][None, :])).nonzero()
-    if not len(near[0]):
-        return new, est, old, 0
-    order = dist[near].argsort(kind='stable')
-    taken_y, taken_l, pairs = set(), set(), []
-    for yi, li in zip(near[0][order].tolist(), near[1][order].tolist()):
-        if yi not in taken_y and li not in taken_l:
-            taken_y.add(yi)
-            taken_l.add(li)
-            pairs.append((int(est.label[young[yi]]), int(old.shown[lost[li]])))
-    mix = new.mixture
-    label = mix.label.copy()
-    est_label = est.label.copy()
-    rec = old.reported.copy()
-    for y, a in pairs:
-        is_y, is_a = mix.label == y, mix.label == a
-        label[is_y], label[is_a] = a, y
-        est_label[est.label == y] = a
-        if not (rec == a).any():
-            rec[rec == y] = a
-    order = est_label.argsort(kind='stable')
-    return (evolve(new, mixture=evolve(mix, label=label)),
-            evolve(est, label=est_label).take(order), evolve(old, reported=rec), len(pairs))
-
-
-def _find_sorted(ascending: np.ndarray, a: np.ndarray):
-    """
-    ``(at, found)``: where each of ``a`` is in the ascending array ``ascending`` and
-    whether it is there at all (``at`` is a valid index either way). For the few labels
-    of a scan: ``np.isin`` would sort both arrays again.
-    """
-    if not len(ascending):
-        return np.zeros(len(a), dtype=np.int64), np.zeros(len(a), dtype=bool)
-    at = np.minimum(ascending.searchsorted(a), len(ascending) - 1)
-    return at, ascending[at] == a
-
-
-def _record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
-    """Carry per-label report counts, scans with returns, first positions and distances
-    travelled."""
-    index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
-    # each label's row in the last report (-1: reported for the first time)
-    prev = np.array([index.get(lab, -1) for lab in est.label.tolist()], dtype=np.int64)
-    again = prev >= 0
-    i = prev[again]
-    scans = np.ones(len(est), dtype=np.int64)
-    scans[again] = old.reported_scans[i] + 1
-    origin = est.m[:, :2].copy()
-    origin[again] = old.reported_origin[i]
-    size = np.empty(len(est))
-    size[again] = old.reported_size[i]
-    if len(i) < len(est):                          # the semi-major axis of the new ones
-        size[~again] = np.sqrt(eig2(est.X[~again])[0])
-    d = est.m[:, :2] - origin
-    travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
-    # only where returns placed it: a coasting label drifts with its predicted velocity
-    travel[est.num_detections <= 0] = 0.0
-    travel[again] = np.maximum(travel[again], old.reported_travel[i])
-    hits = (est.num_detections > 0).astype(np.int64)
-    hits[again] += old.reported_hits[i]
-    return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
-                  reported_travel=travel, reported_size=size, reported_hits=hits)
 
 
 def _pad(a, n: int, fill: float):
@@ -1108,7 +532,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         return mix, 0
     scans = np.zeros(len(cand), dtype=np.int64)
     if reported is not None and len(reported):
-        at, ok = _find_sorted(labels, reported)
+        at, ok = find_sorted(labels, reported)
         full = np.zeros(len(labels), dtype=np.int64)
         full[at[ok]] = reported_scans[ok]
         scans = full[cand]

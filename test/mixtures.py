@@ -4,7 +4,7 @@ test)."""
 import numpy as np
 
 from extended_tracker.ggiw import IW_OFFSET, Mixture
-from extended_tracker.tracker import Estimates
+from extended_tracker.state import Estimates
 
 
 def pedestrians(rows):

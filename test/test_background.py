@@ -10,7 +10,8 @@ from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.background import update_background
 from extended_tracker.sensing.scan import scan_to_points
 from extended_tracker.sim.laser import LaserSpec, Scene, simulate, SimObject, walls_scene
-from extended_tracker.tracker import _record_reports, FilterState
+from extended_tracker.identity import record_reports
+from extended_tracker.state import FilterState
 
 from mixtures import estimates
 
@@ -142,7 +143,7 @@ def _report(state, x, detections=5, semi=None):
     est.num_detections[:] = detections
     if semi is not None:
         est.X[:] = np.diag([semi ** 2, 0.01])
-    return _record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
+    return record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
 
 
 def test_travel_that_protects_counts_only_scans_with_returns():

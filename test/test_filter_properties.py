@@ -8,7 +8,8 @@ from extended_tracker.cphd import predict_cardinality, resize_cardinality
 from extended_tracker.ggiw import cell_stats, IW_OFFSET, Mixture, predict, update_pairs
 from extended_tracker.partition import build_partitions, distance_partitions
 from extended_tracker.reduction import merge_components, reduce_mixture
-from extended_tracker.tracker import FilterState, filter_step
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import filter_step
 
 CFG = TrackerConfig()
 

@@ -13,7 +13,8 @@ import pytest
 
 from extended_tracker.config import from_dict
 from extended_tracker.sim.points import point_scene, PointObject
-from extended_tracker.tracker import FilterState, filter_step
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import filter_step
 
 DT = 0.1
 

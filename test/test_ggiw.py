@@ -222,7 +222,7 @@ def test_closed_form_eigenvalues_and_outlines():
     """eig2 against LAPACK; marker outlines lie on the extent ellipse (p-c)'X^-1(p-c) = 1."""
     from extended_tracker.ggiw import eig2
     from extended_tracker.messages import outline_xy
-    from extended_tracker.tracker import Estimates
+    from extended_tracker.state import Estimates
 
     rng = np.random.default_rng(4)
     A = rng.normal(size=(50, 2, 2))

@@ -1,5 +1,5 @@
 """
-The thin pieces of one contour are reported as one object (``tracker.group_segments``).
+The thin pieces of one contour are reported as one object (``identity.group_segments``).
 
 A laser sees a car across a corner as an L of returns, which the filter tracks as two thin
 objects (its side and its end); the report puts them back together.
@@ -13,7 +13,8 @@ from extended_tracker.config import from_dict
 from extended_tracker.evaluate import in_view, view_of
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sim.laser import LaserSpec, Scene, SimObject, simulate
-from extended_tracker.tracker import Estimates, group_segments
+from extended_tracker.identity import group_segments
+from extended_tracker.state import Estimates
 
 
 def pieces(rows):

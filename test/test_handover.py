@@ -1,5 +1,5 @@
 """
-Lost ids pass to young objects where the lost object would be (``tracker._hand_over``).
+Lost ids pass to young objects where the lost object would be (``identity.hand_over``).
 
 A label shown less than ``extraction.handover_time`` ago and not extracted now is lost; a
 label created less than ``handover_time`` ago and extracted now is young. A young label
@@ -11,7 +11,9 @@ import numpy as np
 
 from extended_tracker.config import from_dict
 from extended_tracker.ggiw import Mixture
-from extended_tracker.tracker import _hand_over, FilterState, filter_step
+from extended_tracker.identity import hand_over
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import filter_step
 
 from mixtures import estimates, pedestrians as mixture
 
@@ -43,7 +45,7 @@ def test_a_young_label_where_the_lost_one_would_be_takes_its_id_and_the_labels_s
                      reported=[9], reported_scans=[2])
     new = FilterState(mixture([(5, 0.05, 0.5, 0.0), (9, 0.7, 0.9, 0.3), (9, 0.3, 0.95, 0.3)]),
                       np.zeros(1), next_label=12, dt=0.1)
-    out, est, record, n = _hand_over(old, new, estimates([9], [[0.9, 0.3]]), CFG)
+    out, est, record, n = hand_over(old, new, estimates([9], [[0.9, 0.3]]), CFG)
     assert n == 1
     assert est.label.tolist() == [5]
     # the young object's components carry the old id, the fading ones the young label
@@ -56,7 +58,7 @@ def test_a_young_label_where_the_lost_one_would_be_takes_its_id_and_the_labels_s
 def test_an_id_extracted_in_the_last_scan_keeps_its_own_report_count():
     old = lost_state([5], [[0.0, 0.0]], reported=[5, 9], reported_scans=[40, 1])
     new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.4, 0.0)]), np.zeros(1), dt=0.1)
-    _, est, record, n = _hand_over(old, new, estimates([9], [[0.4, 0.0]]), CFG)
+    _, est, record, n = hand_over(old, new, estimates([9], [[0.4, 0.0]]), CFG)
     assert n == 1 and est.label.tolist() == [5]
     assert record.reported.tolist() == [5, 9] and record.reported_scans.tolist() == [40, 1]
 
@@ -66,11 +68,11 @@ def test_an_established_label_never_takes_a_lost_id():
     old = lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]])
     new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (7, 1.0, 0.3, 0.0)]), np.zeros(1), dt=0.1)
     est = estimates([7], [[0.3, 0.0]])
-    out, out_est, _, n = _hand_over(old, new, est, CFG)
+    out, out_est, _, n = hand_over(old, new, est, CFG)
     assert n == 0 and out is new and out_est is est
     # the same object under a label created in the window does take it
-    _, out_est, _, n = _hand_over(lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], recent_from=7),
-                                  new, est, CFG)
+    _, out_est, _, n = hand_over(lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], recent_from=7),
+                                 new, est, CFG)
     assert n == 1 and out_est.label.tolist() == [5]
 
 
@@ -85,11 +87,11 @@ def test_an_id_passes_only_to_a_newer_label():
     under_5 = FilterState(mixture([(5, 1.0, 0.02, 0.0), (7, 0.05, 0.05, 0.0)]), np.zeros(1),
                           dt=0.1)
     est = estimates([5], [[0.02, 0.0]])
-    out, out_est, _, n = _hand_over(both_young, under_5, est, CFG)
+    out, out_est, _, n = hand_over(both_young, under_5, est, CFG)
     assert n == 0 and out is under_5 and out_est is est
     under_7 = FilterState(mixture([(5, 0.05, 0.0, 0.0), (7, 1.0, 0.02, 0.0)]), np.zeros(1),
                           dt=0.1)
-    _, out_est, _, n = _hand_over(both_young, under_7, estimates([7], [[0.02, 0.0]]), CFG)
+    _, out_est, _, n = hand_over(both_young, under_7, estimates([7], [[0.02, 0.0]]), CFG)
     assert n == 1 and out_est.label.tolist() == [5]
 
 
@@ -97,18 +99,18 @@ def test_too_far_too_late_or_switched_off_means_no_handover():
     new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.85, 0.0)]), np.zeros(1), dt=0.1)
     est = estimates([9], [[0.85, 0.0]])
     # 0.85 m from where 5 would be (it stood still): beyond 0.8 m
-    assert _hand_over(lost_state([5], [[0.0, 0.0]]), new, est, CFG)[3] == 0
+    assert hand_over(lost_state([5], [[0.0, 0.0]]), new, est, CFG)[3] == 0
     # walking at 1 m/s towards it, 0.4 s + 0.1 s ago: it would be at 0.5 m, 0.35 m away
     moving = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[0.4])
-    assert _hand_over(moving, new, est, CFG)[3] == 1
+    assert hand_over(moving, new, est, CFG)[3] == 1
     # shown 1 s before the last scan: lost for longer than the window
     late = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[1.0])
-    assert _hand_over(late, new, est, CFG)[3] == 0
+    assert hand_over(late, new, est, CFG)[3] == 0
     off = from_dict({'extraction': {'handover_time': 0.0}})
-    assert _hand_over(moving, new, est, off)[3] == 0
+    assert hand_over(moving, new, est, off)[3] == 0
     # the speed limit has the last word: 0.85 m in 0.5 s is more than 0.5 m/s allows
     slow = from_dict({'extraction': {'max_speed': 0.5, 'jump_slack': 0.0}})
-    assert _hand_over(moving, new, est, slow)[3] == 0
+    assert hand_over(moving, new, est, slow)[3] == 0
 
 
 def test_nearest_pairs_first_one_to_one_and_estimates_stay_in_label_order():
@@ -119,7 +121,7 @@ def test_nearest_pairs_first_one_to_one_and_estimates_stay_in_label_order():
     # pairs within 0.8 m, nearest first: 10-5 (0.1), 9-5 (0.3), 11-5 and 11-6 (0.5), 9-6
     # (0.7). 10 takes 5; 5 is then taken, so 11 takes 6 and 9 keeps its own label.
     est = estimates([9, 10, 11], [[0.3, 0.0], [0.1, 0.0], [0.5, 0.0]])
-    out, est, _, n = _hand_over(old, new, est, CFG)
+    out, est, _, n = hand_over(old, new, est, CFG)
     assert n == 2
     assert est.label.tolist() == [5, 6, 9]
     np.testing.assert_allclose(est.m[:, 0], [0.1, 0.5, 0.3])

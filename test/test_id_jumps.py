@@ -2,7 +2,7 @@
 Ids do not jump: a label extracted farther from where it was last shown than
 ``extraction.max_speed`` allows is a new object and gets a new id.
 
-The rule (``tracker._relabel_jumps``): last shown at ``p``, ``t`` seconds ago, now at ``q``;
+The rule (``identity.relabel_jumps``): last shown at ``p``, ``t`` seconds ago, now at ``q``;
 ``|q - p| > max_speed * t + jump_slack`` relabels.
 """
 
@@ -10,9 +10,9 @@ import numpy as np
 
 from extended_tracker.config import from_dict
 from extended_tracker.ggiw import Mixture
-from extended_tracker.tracker import (
-    _relabel_jumps, _remember_shown, FilterState, filter_step,
-)
+from extended_tracker.identity import relabel_jumps, remember_shown
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import filter_step
 
 from mixtures import estimates, pedestrians as mixture
 
@@ -29,7 +29,7 @@ def test_the_reach_is_max_speed_times_time_since_shown_plus_slack():
     # reach 3 m/s * (0.5 + 0.1) s + 1 m = 2.8 m: label 9 at 2.9 m has jumped, label 4 at
     # 2.7 m has not; label 7 was never shown, so it has nothing to jump from
     est = estimates([4, 7, 9], [[2.7, 0.0], [9.0, 9.0], [0.0, 2.9]])
-    out, out_est, n = _relabel_jumps(old, new, est, cfg)
+    out, out_est, n = relabel_jumps(old, new, est, cfg)
     assert n == 1
     assert out_est.label.tolist() == [4, 7, 12]
     assert out.mixture.label.tolist() == [4, 4, 7, 12]
@@ -39,7 +39,7 @@ def test_the_reach_is_max_speed_times_time_since_shown_plus_slack():
     assert np.array_equal(out_est.m, est.m)
     # just inside the reach: nothing changes
     est = estimates([9], [[0.0, 2.79]])
-    out, out_est, n = _relabel_jumps(old, new, est, cfg)
+    out, out_est, n = relabel_jumps(old, new, est, cfg)
     assert n == 0 and out is new and out_est is est
 
 
@@ -55,14 +55,14 @@ def test_a_report_beyond_what_max_accel_allows_from_the_shown_velocity_is_a_new_
     # 4 is 3 m from rest (within 15 m/s * 0.4 s + 1 m = 7 m, but 3 > 1.8); 9 is 2.3 m from
     # the origin but only 1.7 m from where 1.5 m/s carried it (0.6 m): both within reach of
     # the speed limit, only 4 beyond the acceleration's
-    out, est, n = _relabel_jumps(old, new, estimates([4, 9], [[3.0, 0.0], [2.3, 0.0]]), cfg)
+    out, est, n = relabel_jumps(old, new, estimates([4, 9], [[3.0, 0.0], [2.3, 0.0]]), cfg)
     assert n == 1 and est.label.tolist() == [9, 20]
     assert out.mixture.label.tolist() == [20, 9]
     # just inside the allowance from rest: kept; and max_accel 0 switches the check off
     est = estimates([4], [[1.79, 0.0]])
-    assert _relabel_jumps(old, new, est, cfg)[2] == 0
+    assert relabel_jumps(old, new, est, cfg)[2] == 0
     off = from_dict({'extraction': {'max_speed': 15.0, 'jump_slack': 1.0, 'max_accel': 0.0}})
-    assert _relabel_jumps(old, new, estimates([4], [[3.0, 0.0]]), off)[2] == 0
+    assert relabel_jumps(old, new, estimates([4], [[3.0, 0.0]]), off)[2] == 0
 
 
 def test_relabelled_ids_are_never_reused_and_each_gets_its_own():
@@ -72,7 +72,7 @@ def test_relabelled_ids_are_never_reused_and_each_gets_its_own():
                       shown_elapsed=np.zeros(2))
     new = FilterState(mixture([(2, 1.0, 5.0, 0.0), (5, 1.0, 0.0, 5.0)]), np.zeros(1),
                       next_label=30, dt=0.1)
-    out, est, n = _relabel_jumps(old, new, estimates([2, 5], [[5.0, 0.0], [0.0, 5.0]]), cfg)
+    out, est, n = relabel_jumps(old, new, estimates([2, 5], [[5.0, 0.0], [0.0, 5.0]]), cfg)
     assert n == 2 and est.label.tolist() == [30, 31]
     assert out.mixture.label.tolist() == [30, 31] and out.next_label == 32
 
@@ -87,16 +87,16 @@ def test_shown_positions_age_and_dead_labels_are_forgotten():
                       np.zeros(1), dt=0.1)
     shown = estimates([3, 6], [[1.5, 1.0], [4.0, 4.0]])
     shown.m[:, 2:] = [[0.5, 0.0], [0.0, -0.5]]
-    out = _remember_shown(old, new, shown)
+    out = remember_shown(old, new, shown)
     assert out.shown.tolist() == [1, 3, 6]
     np.testing.assert_allclose(out.shown_pos, [[0.0, 0.0], [1.5, 1.0], [4.0, 4.0]])
     np.testing.assert_allclose(out.shown_vel, [[1.0, 0.0], [0.5, 0.0], [0.0, -0.5]])
     np.testing.assert_allclose(out.shown_elapsed, [0.4, 0.0, 0.0])
     # within the handover time a dead label is remembered (0.2 s ago), then forgotten
-    out = _remember_shown(old, new, shown, handover_time=0.2)
+    out = remember_shown(old, new, shown, handover_time=0.2)
     assert out.shown.tolist() == [1, 3, 6, 8]
     np.testing.assert_allclose(out.shown_elapsed, [0.4, 0.0, 0.0, 0.2])
-    assert _remember_shown(out, new, shown, handover_time=0.2).shown.tolist() == [1, 3, 6]
+    assert remember_shown(out, new, shown, handover_time=0.2).shown.tolist() == [1, 3, 6]
 
 
 def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0, max_accel=10.0):
@@ -162,10 +162,10 @@ def test_relabelled_estimates_stay_in_label_order_for_the_shown_record():
                       shown_elapsed=np.zeros(2))
     new = FilterState(mixture([(4, 1.0, 5.0, 0.0), (9, 1.0, 0.0, 3.05)]), np.zeros(1),
                       next_label=13, dt=0.1)
-    out, est, n = _relabel_jumps(old, new, estimates([4, 9], [[5.0, 0.0], [0.0, 3.05]]), cfg)
+    out, est, n = relabel_jumps(old, new, estimates([4, 9], [[5.0, 0.0], [0.0, 3.05]]), cfg)
     assert n == 1
     assert est.label.tolist() == [9, 13]
     np.testing.assert_allclose(est.m[:, :2], [[0.0, 3.05], [5.0, 0.0]])
-    shown = _remember_shown(old, out, est)
+    shown = remember_shown(old, out, est)
     assert shown.shown.tolist() == [9, 13]
     np.testing.assert_allclose(shown.shown_pos, [[0.0, 3.05], [5.0, 0.0]])

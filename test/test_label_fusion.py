@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.tracker import _fuse_duplicate_labels, FilterState, filter_step
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import _fuse_duplicate_labels, filter_step
 
 from mixtures import pedestrians as mixture
 

@@ -17,7 +17,8 @@ from extended_tracker.config import from_dict, PRESETS
 from extended_tracker.cphd import thin_cardinality
 from extended_tracker.ggiw import IW_OFFSET, Mixture
 from extended_tracker.reduction import join_parts
-from extended_tracker.tracker import FilterState, filter_step
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import filter_step
 
 
 def leg_config(pair_scans, mode='cphd'):

@@ -13,7 +13,7 @@ from extended_tracker.ggiw import IW_OFFSET, Mixture
 from extended_tracker.memo import evolve
 from extended_tracker.pipeline import PipelineState
 from extended_tracker.sensing.shadow import Visibility
-from extended_tracker.tracker import Estimates, FilterState
+from extended_tracker.state import Estimates, FilterState
 
 
 def _mixture():
