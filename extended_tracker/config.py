@@ -47,6 +47,10 @@ class ModelConfig:
                              'detections', 0.0, 1e4, lo_open=True)
     surveillance_area: float = _f(100.0, 'clutter area when the scan does not give one', 'm^2',
                                   0.0, 1e8, lo_open=True)
+    clutter_density: str = _f('area', 'where clutter falls: area (uniform over the field of '
+                              'view), or beam (on a random beam at a uniform range: denser '
+                              'near the scanner, as a laser\'s spurious returns)',
+                              choices=('area', 'beam'))
 
 
 @dataclass(frozen=True)

@@ -274,9 +274,12 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)
 
+    clutter = (sp.beam_clutter_log_density(points) if cfg.model.clutter_density == 'beam'
+               else None)
     new_filter, estimates, fdiag = update_state(
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
-        visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d)
+        visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d,
+        clutter_log_density=clutter)
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,

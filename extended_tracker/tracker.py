@@ -160,7 +160,8 @@ def _birth_row(area: float, velocity_std: float, extent_semi_axis: float, dof: f
 def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: TrackerConfig,
                  rate_scale: np.ndarray | None = None, clutter_area: float | None = None,
                  visibility: np.ndarray | None = None,
-                 centroid_offset: np.ndarray | None = None, pair_p_d=None):
+                 centroid_offset: np.ndarray | None = None, pair_p_d=None,
+                 clutter_log_density: np.ndarray | None = None):
     """
     Multi-object update of a predicted state with one scan's detections.
 
@@ -176,7 +177,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     rate_scale : (n,) array, optional
         Factor on each component's expected detections this scan (visible fraction).
     clutter_area : float, optional
-        Area (m^2) clutter and births are spread over; ``model.surveillance_area`` if omitted.
+        Area (m^2) births, and clutter unless ``clutter_log_density`` is given, are spread
+        over; ``model.surveillance_area`` if omitted.
     visibility : (n,) array, optional
         Visible fraction of each component, carried into the estimates.
     centroid_offset : (n, 2) array, optional
@@ -185,6 +187,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         ``pair_p_d(mix, comp, m_updated, P_updated) -> (k,)`` p_D of each (component,
         cell) pair at its updated position; by default ``p_d[comp]``. ``p_d`` itself is
         still what the missed-detection factor uses.
+    clutter_log_density : (m,) array, optional
+        ``log c(z)`` of each detection, the clutter spatial density there (1/m^2); uniform
+        over ``clutter_area`` if omitted.
 
     Returns
     -------
@@ -267,7 +272,13 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         log_w = np.concatenate([np.log(mix.w), [np.log(mu_b)]])
         log_qd = np.concatenate([log_miss_factor(mix, p_d, rate_scale),
                                  [_birth_log_miss_factor(cfg)]])
-    cell_log_c = -stats.n * np.log(area)
+    if clutter_log_density is None or not n_cells:
+        cell_log_c = -stats.n * np.log(area)
+    else:
+        # log c^W = sum over the cell's detections of log c(z)
+        cell_log_c = np.bincount(np.repeat(np.arange(n_cells), stats.n),
+                                 weights=clutter_log_density[np.concatenate(pset.cells)],
+                                 minlength=n_cells)
     if mc.mode == 'cphd':
         k_most = max(map(len, pset.partitions), default=0)
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,

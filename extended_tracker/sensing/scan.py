@@ -18,6 +18,9 @@ import numpy as np
 from ..errors import ScanError
 
 INVALID_KINDS = ('nan', 'pos_inf', 'neg_inf', 'below_min', 'above_max')
+# beam clutter density (ScanPoints.beam_clutter_log_density) is held at its value here
+# nearer the scanner, where 1 / r would grow without bound
+BEAM_CLUTTER_MIN_RANGE = 0.1        # m
 
 
 @dataclass
@@ -99,10 +102,30 @@ class ScanPoints:
     range_max: float
 
     @property
+    def fov(self) -> float:
+        """Angle the beams cover (rad), each beam counting its own spacing."""
+        return min(self.angle_hi - self.angle_lo + abs(self.angle_step), 2 * math.pi)
+
+    @property
     def area(self) -> float:
         """Area of the field-of-view sector (m^2): where clutter and births can appear."""
-        fov = min(self.angle_hi - self.angle_lo + abs(self.angle_step), 2 * math.pi)
-        return max(0.5 * fov * self.range_max ** 2, 1e-6)
+        return max(0.5 * self.fov * self.range_max ** 2, 1e-6)
+
+    def beam_clutter_log_density(self, points: np.ndarray) -> np.ndarray:
+        """
+        ``log c(z)`` at each of ``points`` for clutter that falls on a beam drawn uniformly
+        at a range drawn uniformly in ``[0, range_max]``: ``c(z) = 1 / (fov range_max r)``
+        in Cartesian coordinates (the polar area element is ``r dr dtheta``), with ``r``
+        at least :data:`BEAM_CLUTTER_MIN_RANGE` (so it integrates over the sector to
+        ``1 - BEAM_CLUTTER_MIN_RANGE / (2 range_max)``, not quite 1).
+
+        A laser's spurious returns (dust, rain, mixed pixels) come per beam, so they are
+        ``range_max / r`` times denser at range ``r`` than clutter spread evenly over the
+        sector; taken as even, the returns near the scanner looked like an object there.
+        """
+        r = np.sqrt(np.add.reduce(points * points, axis=1))
+        return -np.log(max(self.fov, 1e-9) * max(self.range_max, 1e-6)
+                       * np.maximum(r, BEAM_CLUTTER_MIN_RANGE))
 
     @property
     def angle_step(self) -> float:

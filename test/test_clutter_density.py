@@ -1,0 +1,123 @@
+"""
+Clutter that falls on random beams (``model.clutter_density: beam``): its density against
+the simulated laser's own clutter and its integral over the sector; in the filter, the
+uniform density given per detection changes nothing, and on the clutter scenario the beam
+density reports fewer objects where there are none.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from extended_tracker.config import from_dict
+from extended_tracker.evaluate import SCENARIOS, truth_of, view_of
+from extended_tracker.pipeline import PipelineState, step
+from extended_tracker.sensing.scan import (
+    BEAM_CLUTTER_MIN_RANGE, Header, scan_to_points, ScanData, Stamp,
+)
+from extended_tracker.sim import laser
+from extended_tracker.state import FilterState
+from extended_tracker.tracker import predict_state, update_state
+
+
+def sector(n_beams, fov, range_max):
+    """The scan geometry of ``n_beams`` beams over ``fov`` centred ahead (ranges unused)."""
+    inc = fov / n_beams
+    a0 = -0.5 * fov + 0.5 * inc
+    scan = ScanData(Header(Stamp(1, 0), 'laser'), a0, a0 + inc * (n_beams - 1), inc, 0.05,
+                    range_max, np.full(n_beams, 1.0))
+    return scan_to_points(scan)
+
+
+def test_the_density_is_that_of_returns_on_random_beams_at_uniform_ranges():
+    """Clutter drawn as the simulated laser draws it (a beam at random, a range uniform up
+    to range_max), counted in 0.5 m squares, against the density integrated over each."""
+    n_beams, fov, rmax = 1441, math.pi, 6.0
+    sp = sector(n_beams, fov, rmax)
+    rng = np.random.default_rng(3)
+    n = 2_000_000
+    beam = rng.integers(0, n_beams, n)
+    r = rng.uniform(0.0, rmax, n)
+    ang = sp.angles[beam]
+    pts = np.stack([r * np.cos(ang), r * np.sin(ang)], axis=1)
+    edges_x, edges_y = np.arange(0.0, 4.01, 0.5), np.arange(-4.0, 4.01, 0.5)
+    counts, _, _ = np.histogram2d(pts[:, 0], pts[:, 1], [edges_x, edges_y])
+    # the density integrated over each square on a 40 x 40 midpoint grid (all inside the
+    # sector: x > 0, and the farthest corner at 5.66 m is within range)
+    sub = (np.arange(40) + 0.5) / 40 * 0.5
+    checked = 0
+    for i, x0 in enumerate(edges_x[:-1]):
+        for j, y0 in enumerate(edges_y[:-1]):
+            gx, gy = np.meshgrid(x0 + sub, y0 + sub)
+            grid = np.stack([gx.ravel(), gy.ravel()], axis=1)
+            if np.hypot(grid[:, 0], grid[:, 1]).min() < 0.5:
+                continue                 # the square at the scanner: too few beams cross it
+            expected = n * np.exp(sp.beam_clutter_log_density(grid)).mean() * 0.25
+            # Poisson counts: within 4.5 standard deviations (and 2 % for the midpoint rule)
+            assert abs(counts[i, j] - expected) <= 4.5 * np.sqrt(expected) + 0.02 * expected
+            checked += 1
+    assert checked >= 60
+    # near the scanner the density is far above the sector's even spread
+    near, far = sp.beam_clutter_log_density(np.array([[0.5, 0.0], [5.5, 0.0]]))
+    assert np.exp(near) > 2.0 / sp.area > np.exp(far)
+
+
+def test_the_density_integrates_to_one_less_the_floor_near_the_scanner():
+    for n_beams, fov, rmax in [(361, math.pi, 13.0), (1081, 1.5 * math.pi, 30.0),
+                               (768, math.radians(270.0), 11.0)]:
+        sp = sector(n_beams, fov, rmax)
+        dr = rmax / 200_000
+        r = (np.arange(200_000) + 0.5) * dr
+        density = np.exp(sp.beam_clutter_log_density(np.stack([r, np.zeros_like(r)], axis=1)))
+        total = sp.fov * np.sum(density * r) * dr               # polar area element r dr dtheta
+        assert total == pytest.approx(1.0 - BEAM_CLUTTER_MIN_RANGE / (2.0 * rmax), abs=1e-7)
+
+
+def test_an_even_density_given_per_detection_is_the_default_update():
+    cfg = from_dict({})
+    rng = np.random.default_rng(8)
+    state = FilterState.initial(cfg)
+    area = 120.0
+    for k in range(12):
+        pts = np.vstack([np.array([2.0 + 0.1 * k, 1.0]) + rng.normal(0, 0.1, (9, 2)),
+                         np.array([4.0, -1.0 - 0.1 * k]) + rng.normal(0, 0.1, (7, 2)),
+                         rng.uniform(-5, 5, (2, 2))])
+        pred = predict_state(state, 0.1, cfg)
+        p_d = np.full(len(pred.mixture), 0.9)
+        even = np.full(len(pts), -np.log(area))
+        a, est_a, _ = update_state(pred, pts, p_d, cfg, clutter_area=area)
+        b, est_b, _ = update_state(pred, pts, p_d, cfg, clutter_area=area,
+                                   clutter_log_density=even)
+        for f in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label'):
+            np.testing.assert_allclose(getattr(b.mixture, f), getattr(a.mixture, f),
+                                       rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(b.log_card, a.log_card, rtol=1e-12, atol=1e-12)
+        assert est_b.label.tolist() == est_a.label.tolist()
+        state = a
+    assert len(est_a) == 2
+
+
+def run_clutter_scene(density):
+    factory, seconds, seed, overrides, _ = SCENARIOS['clutter']
+    cfg = from_dict({**overrides, 'model': {**overrides['model'], 'clutter_density': density}})
+    state = PipelineState.initial(cfg)
+    false = found = 0
+    for scan, objs in laser.simulate(factory(), seconds, seed=seed):
+        state, res = step(state, scan, cfg)
+        _, centres, _ = truth_of(objs, view_of(scan))
+        est = res.estimates.m[:, :2]
+        d = np.linalg.norm(est[:, None, :] - centres[None, :, :2], axis=2)
+        false += int(np.count_nonzero(d.min(axis=1, initial=np.inf) > 1.0))
+        found += int(np.count_nonzero(d.min(axis=0, initial=np.inf) <= 1.0))
+    return false, found
+
+
+def test_per_beam_clutter_is_not_tracked_at_the_scanner():
+    """15 clutter returns a scan on random beams: some 1.2 a scan within a metre of the
+    scanner, where an even spread expects 0.1. Told that, the filter stops reporting
+    an object there."""
+    false_area, found_area = run_clutter_scene('area')
+    false_beam, found_beam = run_clutter_scene('beam')
+    assert false_beam < 0.5 * false_area
+    assert found_beam >= 0.97 * found_area
