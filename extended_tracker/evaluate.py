@@ -25,6 +25,7 @@ GOSPA_P = 2.0
 # every scenario's config: the simulated laser puts its clutter returns on random beams at
 # uniform ranges (sim.laser), and the filter is told so, as it is told the clutter rate
 SUITE_CONFIG = {'model': {'clutter_density': 'beam'}}
+
 # name: (scene factory, seconds, seed, config overrides, what it shows)
 SCENARIOS = {
     'tutorial': (laser.tutorial_scene, 12.0, 1, {'background': {'enabled': False}},
