@@ -69,6 +69,23 @@ def test_pieces_apart_moving_differently_or_not_thin_stay_apart():
     assert group_segments(est, np.array([5, 5]), gap=0.0, speed=2.0)[1] == 0
 
 
+def test_an_end_that_touches_the_side_inside_its_estimated_length_is_grouped():
+    # the side's estimate reaches 1 m past the car's rear (it lags the car and its length
+    # is a second moment): the end piece touches the side 1 m in from the side's end, 1 m
+    # from the nearest end of it
+    side = (3, (-1.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0)
+    end = (7, (0.0, 0.05), (0.0, 1.8), 0.005, (5.1, 0.0), 10.0)
+    out, n = group_segments(pieces([side, end]), np.array([9, 5]), gap=0.5, speed=2.0)
+    assert n == 1 and out.label.tolist() == [3]
+    # the rectangle spans the side's estimate and the end's width
+    np.testing.assert_allclose(out.m[0, :2], [1.75, 0.9], atol=0.01)
+    # the same end 0.6 m beside the side, or parallel to it 0.6 m away, is another object
+    for other in [(7, (0.0, 0.6), (0.0, 2.4), 0.005, (5.1, 0.0), 10.0),
+                  (7, (0.0, 0.6), (3.0, 0.6), 0.005, (5.1, 0.0), 10.0)]:
+        out, n = group_segments(pieces([side, other]), np.array([9, 5]), gap=0.5, speed=2.0)
+        assert n == 0
+
+
 def _car_run(group_gap):
     """A 4.5 x 1.8 m car driving past a 270 deg scanner 8 m away, seen across its
     corners; per scan the reports near it and their distance to its centre."""
