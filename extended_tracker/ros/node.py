@@ -87,8 +87,8 @@ class TrackerNode(Node):
         self.srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
         self.get_logger().info(
             f'tracking {self.sub.topic_name} in {self.cfg.model.mode} mode, p_D '
-            f'{self.cfg.detection.model}, background '
-            f'{"on" if self.cfg.background.enabled else "off"}')
+            f'{self.cfg.detection.model}, clutter density {self.cfg.model.clutter_density}, '
+            f'background {"on" if self.cfg.background.enabled else "off"}')
 
     # --- parameters ---
     def _read_config(self) -> TrackerConfig:
