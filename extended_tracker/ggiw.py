@@ -357,19 +357,29 @@ class CellStats:
         Centroid ``z_bar``.
     scatter : (c, 2, 2) array
         ``Z = sum (z - z_bar)(z - z_bar)^T``.
+    log_c : (c,) array or None
+        ``log c^W``, the sum of the detections' log clutter densities, when
+        :func:`cell_stats` is given them.
 
     """
 
     n: np.ndarray
     mean: np.ndarray
     scatter: np.ndarray
+    log_c: np.ndarray | None = None
 
 
-def cell_stats(points: np.ndarray, cells: list[np.ndarray]) -> CellStats:
-    """Return the centroid and scatter of each cell (a list of index arrays into points)."""
+def cell_stats(points: np.ndarray, cells: list[np.ndarray],
+               log_density: np.ndarray | None = None) -> CellStats:
+    """
+    Return the centroid and scatter of each cell (a list of index arrays into points), and
+    with ``log_density`` (m,), the log clutter density at each point, each cell's sum of
+    it (``log c^W``).
+    """
     c = len(cells)
     if c == 0:
-        return CellStats(np.zeros(0, dtype=int), np.zeros((0, 2)), np.zeros((0, 2, 2)))
+        return CellStats(np.zeros(0, dtype=int), np.zeros((0, 2)), np.zeros((0, 2, 2)),
+                         None if log_density is None else np.zeros(0))
     sizes = np.fromiter(map(len, cells), dtype=np.int64, count=c)
     flat = np.concatenate(cells)
     owner = np.repeat(np.arange(c), sizes)
@@ -384,7 +394,9 @@ def cell_stats(points: np.ndarray, cells: list[np.ndarray]) -> CellStats:
     scatter[:, 0, 0] = np.bincount(owner, weights=dx * dx, minlength=c)
     scatter[:, 0, 1] = scatter[:, 1, 0] = np.bincount(owner, weights=dx * dy, minlength=c)
     scatter[:, 1, 1] = np.bincount(owner, weights=dy * dy, minlength=c)
-    return CellStats(sizes, mean, scatter)
+    log_c = (None if log_density is None
+             else np.bincount(owner, weights=log_density[flat], minlength=c))
+    return CellStats(sizes, mean, scatter, log_c)
 
 
 @dataclass(frozen=True)

@@ -235,7 +235,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     diag.cells = len(pset.cells)
     diag.capped_partitions = pset.capped_partitions
     diag.capped_cells = pset.capped_cells
-    stats = cell_stats(points, pset.cells)
+    stats = cell_stats(points, pset.cells, clutter_log_density)
     n_cells = len(pset.cells)
 
     # existing components: gated (component, cell) pairs
@@ -272,13 +272,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         log_w = np.concatenate([np.log(mix.w), [np.log(mu_b)]])
         log_qd = np.concatenate([log_miss_factor(mix, p_d, rate_scale),
                                  [_birth_log_miss_factor(cfg)]])
-    if clutter_log_density is None or not n_cells:
-        cell_log_c = -stats.n * np.log(area)
-    else:
-        # log c^W = sum over the cell's detections of log c(z)
-        cell_log_c = np.bincount(np.repeat(np.arange(n_cells), stats.n),
-                                 weights=clutter_log_density[np.concatenate(pset.cells)],
-                                 minlength=n_cells)
+    cell_log_c = -stats.n * np.log(area) if stats.log_c is None else stats.log_c
     if mc.mode == 'cphd':
         k_most = max(map(len, pset.partitions), default=0)
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
