@@ -17,7 +17,7 @@ import numpy as np
 
 from .config import TrackerConfig
 from .cphd import thin_cardinality
-from .ggiw import eig2, Mixture
+from .ggiw import Mixture
 from .memo import evolve
 from .partition import find_root, union_min
 from .reduction import join_parts
@@ -187,7 +187,7 @@ def record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filter
     size = np.empty(len(est))
     size[again] = old.reported_size[i]
     if len(i) < len(est):                          # the semi-major axis of the new ones
-        size[~again] = np.sqrt(eig2(est.X[~again])[0])
+        size[~again] = est.axes()[0][~again]
     d = est.m[:, :2] - origin
     travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
     # only where returns placed it: a coasting label drifts with its predicted velocity
