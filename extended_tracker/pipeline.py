@@ -222,7 +222,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     # background: drop static returns; never learn those of tracks that have moved
     points = sp.points
     bg_points = np.zeros((0, 2))
-    learned = bg_points                    # returns whose beams were learned this scan
+    learned = np.zeros((0, 2))             # returns whose beams were learned this scan
     moved = state.moved
     if cfg.background.enabled and len(sp.angles):
         est = state.last_estimates

@@ -32,16 +32,16 @@ restarted it and an edge beam of a post was never learned.
 
 Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
 person-sized and moved ``moved_distance`` beyond its first extent while seen: the caller
-decides) are never learned from where the background is known or the beam was seen
-free, so a person who walks in and stops stays tracked however long they stand, in
-front of a wall or of open space. A track that never moved protects nothing: a static object is learned like any
-other (after ``confirm_time`` behind the known background or where it is unknown,
-``forget_time`` in front of it), however it is tracked meanwhile. (Protected by their own
-static tracks, furniture revealed behind something learned at start-up on the MiR
-recording, a spot on positive_1 and one on the leg_tracker demo were reported for
-hundreds of scans.) A return that completes its beam's confirmation is background in that
-same scan; ``learned`` marks those beams, so that the caller can drop the tracks that
-stood on them.
+decides) are never learned from where the background is known or the beam was seen free,
+so a person who walks in and stops stays tracked however long they stand, in front of a
+wall or of open space. A track that never moved protects nothing: a static object is
+learned like any other (after ``confirm_time`` behind the known background or where it
+is unknown, ``forget_time`` in front of it), however it is tracked meanwhile. (Protected
+by their own static tracks, furniture revealed behind something learned at start-up on
+the MiR recording, a spot on positive_1 and one on the leg_tracker demo were reported
+for hundreds of scans.) A return that completes its beam's confirmation is background in
+that same scan; ``learned`` marks those beams, so that the caller can drop the tracks
+that stood on them.
 
 A beam that has returned nothing for ``confirm_time`` while its background was unknown is
 *free* (open space, or nothing within range). Where the background is unknown and the
