@@ -120,12 +120,12 @@ def _padded(a, fill):
     return np.concatenate([pad, a, pad])
 
 
-def _reach(angles, margin):
-    """Per offset: the range up to which that many beams are within ``margin`` across
-    (0 for all of them in a scan of one beam: it has no neighbours)."""
-    if len(angles) < 2:
+def _reach(angle_step, margin):
+    """Per offset: the range up to which that many beams ``angle_step`` apart are within
+    ``margin`` across (0 for all of them in a scan of one beam, step 0: no neighbours)."""
+    if angle_step <= 0:
         return np.zeros(len(_OFFSETS))
-    return _PER_OFFSET * (margin / abs(float(angles[1] - angles[0])))
+    return _PER_OFFSET * (margin / angle_step)
 
 
 def _neighbour_returned(c, r, learn, idle, reach, margin):
@@ -217,7 +217,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # a beam that returned nothing or its background ages its candidate when a
         # neighbour returned that range: a surface at the edge of range, or behind a gap,
         # sparkles over the beams
-        reach = _reach(state.angles, margin)
+        reach = _reach(scan.angle_step, margin)
         age = np.where(_neighbour_returned(c, r, learn, ~seen | is_bg, reach, margin),
                        age + dt, age)
         farther = ~known | (c > b + margin)
