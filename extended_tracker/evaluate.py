@@ -32,12 +32,12 @@ SCENARIOS = {
                  '180 deg / 0.5 deg / 13 m, four pedestrians, one standing, one walking '
                  'behind it and one in front of it'),
     'crossing': (laser.crossing_scene, 12.0, 2, {'background': {'enabled': False}},
-                 'three pedestrians crossing paths'),
+                 'three pedestrians crossing paths, passing 0.6-0.7 m apart'),
     'mixed_traffic': (laser.mixed_traffic_scene, 8.0, 3,
                       {'background': {'enabled': False}, 'model': {'clutter_rate': 3.0}},
                       '270 deg / 0.25 deg / 30 m: a car, two bicycles, seven pedestrians, '
                       '3 clutter returns'),
-    'crowd20': (lambda: laser.crowd_scene(20, seed=5), 10.0, 4,
+    'crowd20': (lambda: laser.crowd_scene(20, seed=5, seconds=10.0), 10.0, 4,
                 {'background': {'enabled': False}}, 'a crowd of 20, heavy occlusion'),
     'clutter': (laser.clutter_scene, 12.0, 5,
                 {'background': {'enabled': False}, 'model': {'clutter_rate': 15.0}},
