@@ -99,7 +99,8 @@ class BirthConfig:
                      'objects/s', 0.0, 1e3, lo_open=True)
     min_weight: float = _f(0.02, 'birth hypotheses lighter than this are dropped', '', 0.0, 1.0)
     min_points: int = _f(2, 'fewest detections a new object is born from (a lone point is '
-                         'indistinguishable from clutter)', 'detections', 1, 1000)
+                         'indistinguishable from clutter; fewer that no object explains '
+                         'are clutter)', 'detections', 1, 1000)
     velocity_std: float = _f(1.5, 'velocity std of a new object', 'm/s', 0.0, 50.0,
                              lo_open=True)
     dof: float = _f(20.0, 'inverse Wishart v of the birth extent prior (> 6)', '', 6.0, 1e5,

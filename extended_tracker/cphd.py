@@ -312,7 +312,7 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
 
 
 def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_card,
-                log_clutter_pmf) -> UpdateWeights:
+                log_clutter_pmf, clutter_cells=None) -> UpdateWeights:
     """
     ET-CPHD update in the log domain.
 
@@ -333,7 +333,14 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     log_card : (N_max + 1,) array
         Predicted cardinality pmf (log).
     log_clutter_pmf : (M,) array
-        Clutter cardinality pmf (log), ``M`` larger than the most cells in a partition.
+        Clutter cardinality pmf (log), ``M`` larger than the most cells in a partition
+        (counting a clutter cell as its detections).
+    clutter_cells : (c,) bool array, optional
+        Cells of several detections that no component explains, each taken as that many
+        clutter detections: the partition holding one is evaluated as the partition with
+        it split into singletons that no component explains. Clutter comes one detection
+        at a time, so without this such a cell makes every partition holding it
+        impossible.
 
     Returns
     -------
@@ -356,7 +363,16 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     else:
         log_psi = np.full(n_cells, NEG_INF)
     log_a = log_psi - cell_log_c
-    k_most = max(map(len, partitions), default=0)
+    n_part = len(partitions)
+    sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
+    clutter_extra = None
+    if clutter_cells is not None and n_part:
+        # a clutter cell of |W| detections is |W| singletons: |W| - 1 more cells
+        extra = np.where(clutter_cells, np.asarray(cell_size) - 1, 0)
+        clutter_extra = np.array([extra[np.asarray(p, dtype=np.int64)].sum()
+                                  for p in partitions], dtype=np.int64)
+    k_most = (max(map(len, partitions), default=0) if clutter_extra is None
+              else int((sizes + clutter_extra).max()))
     T = _log_lambda_table(log_q0, n_max, k_most)
     lf = _log_factorial(k_most + 1)
     need = k_most + 1
@@ -369,19 +385,27 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
     W1 = lse_last((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
-    n_part = len(partitions)
     lam_P = np.full((n_part, n_max + 1), NEG_INF)
     u0_terms = np.full(n_part, NEG_INF)
     log_u_cell = np.full(n_cells, NEG_INF)
     if n_part:
         # flatten: one row per (partition, cell)
-        sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
         flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in partitions])
         pid = np.repeat(np.arange(n_part), sizes)
         single = cell_size[flat] == 1
         la = log_a[flat]
         k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
         k2 = sizes - k1
+        if clutter_extra is not None:
+            # a clutter cell is its detections as singletons that no component explains
+            # (a_W = -inf: inactive, clutter only): they count in k1, not as a cell in k2,
+            # and put no a_W into A_P
+            cc = clutter_cells[flat]
+            k2 -= np.bincount(pid, weights=cc, minlength=n_part).astype(np.int64)
+            k1 = k1 + np.bincount(pid, weights=np.where(cc, cell_size[flat], 0),
+                                  minlength=n_part).astype(np.int64)
+            la = np.where(cc, NEG_INF, la)
+            single = single | cc
         n_active = np.bincount(pid, weights=single & np.isfinite(la),
                                minlength=n_part).astype(np.int64)
         log_A = np.bincount(pid, weights=np.where(single, 0.0, la), minlength=n_part)
@@ -422,7 +446,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
 
 
 def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_rate,
-               n_max) -> UpdateWeights:
+               n_max, clutter_cells=None) -> UpdateWeights:
     """
     ET-PHD update (Granström, Lundquist & Orguner 2012) in the log domain.
 
@@ -432,7 +456,8 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
     detected weight ``sum_{P ni W} omega_P w_i g_iW / (d_W prod lambda c(z))``; missed
     weight ``w_i q_D,i``. ``cell_log_c`` is ``log c^W`` and ``lambda`` the clutter rate.
     The posterior cardinality returned is Poisson with the posterior mean (the PHD
-    carries no more than that).
+    carries no more than that). A cell of ``clutter_cells`` (see :func:`cphd_update`) is
+    its detections as singletons no component explains: ``d_W = 1``, as for each of them.
 
     """
     log_w = np.asarray(log_w, dtype=float)
@@ -442,7 +467,8 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
         log_sum = logsumexp(log_w[:, None] + log_g, axis=0) - log_lc
     else:
         log_sum = np.full(n_cells, NEG_INF)
-    log_d = np.logaddexp(np.where(cell_size == 1, 0.0, NEG_INF), log_sum)
+    clutter_only = cell_size == 1 if clutter_cells is None else (cell_size == 1) | clutter_cells
+    log_d = np.logaddexp(np.where(clutter_only, 0.0, NEG_INF), log_sum)
     log_omega = np.array([np.sum(log_d[np.asarray(c)]) for c in partitions])
     log_omega = log_omega - logsumexp(log_omega)
     log_cell_weight = np.full(n_cells, NEG_INF)

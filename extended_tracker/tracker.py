@@ -267,6 +267,14 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     log_g[comp, cell] = np.log(p_d_pair) + pair_lik
     log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + birth_lik,
                                 NEG_INF)
+    lonely = None
+    if cfg.birth.min_points > 2:
+        # a cell of several returns too few to be born from, that no object explains, is
+        # clutter return by return (clutter alone would make every partition holding it
+        # impossible, and the cardinality NaN from then on)
+        lonely = (stats.n > 1) & ~np.isfinite(log_g).any(axis=0)
+        if not lonely.any():
+            lonely = None
     mu_b = birth_intensity(cfg, state.dt)
     with np.errstate(divide='ignore'):
         log_w = np.concatenate([np.log(mix.w), [np.log(mu_b)]])
@@ -274,12 +282,17 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                  [_birth_log_miss_factor(cfg)]])
     cell_log_c = -stats.n * np.log(area) if stats.log_c is None else stats.log_c
     if mc.mode == 'cphd':
+        # most detections a partition can take as clutter: its cells, a lonely one counted
+        # return by return
         k_most = max(map(len, pset.partitions), default=0)
+        if lonely is not None:
+            k_most += int(np.add.reduce(stats.n[lonely] - 1))
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
-                          state.log_card, _clutter_log_pmf(mc.clutter_rate, k_most + 1))
+                          state.log_card, _clutter_log_pmf(mc.clutter_rate, k_most + 1),
+                          lonely)
     else:
         out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
-                         mc.clutter_rate, mc.n_max)
+                         mc.clutter_rate, mc.n_max, lonely)
 
     # posterior mixture: missed components, (component, cell) updates, births
     prune = cfg.reduction.prune_weight

@@ -218,6 +218,58 @@ def test_phd_equals_brute_force_with_poisson_prior(seed):
     np.testing.assert_allclose(np.exp(cp.log_card), ref_card, rtol=1e-9, atol=1e-14)
 
 
+def _with_clutter_cell(card, s, f, c):
+    """
+    The filter's inputs for a world where detections 2 and 3 are clutter only, with them
+    as one cell marked clutter: the partitions of {0, 1}, each with that cell.
+    """
+    log_w, log_qd, log_g, cell_log_c, size, _, masks = filter_inputs(card, s, f, c)
+    col = {mk: i for i, mk in enumerate(masks)}
+    both = col[0b1100]
+    parts = [np.array([col[0b0011], both]), np.array([col[0b0001], col[0b0010], both])]
+    clutter_cells = np.zeros(len(masks), dtype=bool)
+    clutter_cells[both] = True
+    return log_w, log_qd, log_g, cell_log_c, size, parts, masks, clutter_cells
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_a_cell_nothing_explains_is_clutter_return_by_return(seed):
+    """
+    Detections 2 and 3 only clutter explains, given to the update as one cell marked as
+    clutter (as the tracker does with a cell too small to be born from that no object
+    explains): the same posterior as the enumeration, where they are two clutter returns.
+    Without the mark the cell makes both partitions impossible.
+    """
+    s, f, c = make_world(seed, dead=[2, 3])
+    rng = np.random.default_rng(200 + seed)
+    card = rng.dirichlet(np.ones(5))
+    pc = rng.dirichlet(np.ones(M + 1))                 # not Poisson
+    ref_card, ref_missed, ref_det = brute_force(card, s, f, c, pc)
+    log_w, log_qd, log_g, cell_log_c, size, parts, masks, cc = _with_clutter_cell(
+        card, s, f, c)
+    assert not np.isfinite(log_g[:, cc]).any()
+    # the pmf reaches 4 clutter returns: the cell's two and detections 0 and 1
+    out = cphd_update(log_w, log_qd, log_g, cell_log_c, size, parts, np.log(card),
+                      np.log(pc), cc)
+    # Tolerance: as in test_cphd_equals_brute_force
+    np.testing.assert_allclose(np.exp(out.log_card), ref_card, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(np.exp(out.log_w_missed), ref_missed, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(np.exp(out.log_w_detected), ref_det[:, masks], rtol=1e-10,
+                               atol=1e-14)
+
+    # the PHD with a Poisson prior (exact up to the oracle's truncation, see
+    # test_phd_equals_brute_force_with_poisson_prior)
+    lam, mean = 0.9, 0.5
+    card = np.exp(poisson_log_pmf(mean, 13))
+    ref_card, ref_missed, ref_det = brute_force(card / card.sum(), s, f, c,
+                                                np.exp(poisson_log_pmf(lam, M)))
+    out = phd_update(np.log(mean * s), log_qd, log_g, cell_log_c, size, parts, lam, 13, cc)
+    np.testing.assert_allclose(np.exp(out.log_w_missed), ref_missed, rtol=1e-9)
+    np.testing.assert_allclose(np.exp(out.log_w_detected), ref_det[:, masks], rtol=1e-9,
+                               atol=1e-14)
+    assert np.all(np.isfinite(out.log_partition_weight))
+
+
 def test_log_domain_survives_extreme_scales():
     """a_W spanning hundreds of orders of magnitude: no overflow, same normalised result."""
     s, f, c = make_world(5)

@@ -160,3 +160,33 @@ def test_returns_in_one_scan_are_not_an_object_returns_in_two_of_three_are():
     # seen in every scan: shown from the third scan on, no later than before
     shown, _ = _spot(8, 2)
     assert shown[:2] == [[], []] and all(s == [1] for s in shown[2:])
+
+
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_cluster_too_small_to_be_born_from_is_clutter(mode):
+    # birth.min_points 5: a tight cluster of 3 returns far from the walker, in scans
+    # 20-29, is neither an object nor something a new object may be born from. Clutter
+    # comes one return at a time, so as a cell it would make every partition holding it
+    # impossible (and, before it was taken as clutter return by return, the CPHD's
+    # cardinality NaN for good); the walker must be tracked on as before.
+    cfg = from_dict({'model': {'mode': mode, 'surveillance_area': 400.0},
+                     'birth': {'min_points': 5}})
+    walker = [PointObject((-4.0, -3.0), (0.8, 0.3))]
+    cluster = np.array([[5.0, 5.0], [5.04, 5.01], [5.08, 5.0]])   # under d_min apart
+    rng = np.random.default_rng(7)
+    state = FilterState.initial(cfg)
+    labels, near_cluster = [], 0
+    for k in range(40):
+        pts, _ = point_scene(walker, k * DT, rng, clutter_rate=0.0)
+        if 20 <= k < 30:
+            pts = np.vstack([pts, cluster])
+        state, est, _ = filter_step(state, pts, DT, cfg)
+        assert not np.isnan(state.log_card).any(), k
+        assert np.exp(state.log_card).sum() == pytest.approx(1.0, abs=1e-9)
+        if k >= 5:
+            assert len(est) >= 1, k
+            d = np.linalg.norm(est.m[:, :2] - walker[0].centre(k * DT), axis=1)
+            labels.append(int(est.label[np.argmin(d)]))
+        near_cluster += int(np.any(np.linalg.norm(est.m[:, :2] - cluster[1], axis=1) < 1.0))
+    assert len(set(labels)) == 1, Counter(labels)
+    assert near_cluster == 0
