@@ -82,7 +82,8 @@ class PartitionConfig:
     d_max: float = _f(0.8, 'largest distance threshold of distance partitioning', 'm', 0.0,
                       20.0, lo_open=True)
     max_partitions: int = _f(40, 'cap on the number of partitions per scan', '', 1, 10000)
-    max_cells: int = _f(600, 'cap on the number of distinct cells per scan', '', 1, 100000)
+    max_cells: int = _f(600, 'cap on the number of distinct cells per scan (the first '
+                        'partition is taken whatever its cells)', '', 1, 100000)
     sub_partition: bool = _f(True, 'split cells that likely hold several objects (k-means++)')
     max_sub_objects: int = _f(4, 'most objects sub-partitioning splits one cell into', '', 2,
                               20)

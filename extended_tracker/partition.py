@@ -117,12 +117,13 @@ class PartitionSet:
         """
         Add the partition whose cells are ``entries`` (``[members, id]`` each, ``id`` None
         for a cell not held yet) unless it is a duplicate or its new cells would pass the
-        cell cap; the new cells' ids are written into their entries.
+        cell cap; the new cells' ids are written into their entries. The first partition
+        is always taken: without one the scan could not update the tracks at all.
         """
         new = [e for e in entries if e[1] is None]
         if not new and tuple(sorted(e[1] for e in entries)) in self._seen:
             return False
-        if len(self.cells) + len(new) > max_cells:
+        if len(self.cells) + len(new) > max_cells and self.partitions:
             self.capped_cells += len(new)
             return False
         for e in new:

@@ -83,6 +83,19 @@ def test_every_partition_covers_each_detection_once(pts, d_min, span):
     assert len(keys) == len(pset.cells)
 
 
+@given(point_sets(), st.integers(1, 4), st.integers(1, 6))
+def test_the_caps_always_leave_a_partition(pts, max_parts, max_cells):
+    """However tight the caps, the first partition is taken: a scan always updates."""
+    from dataclasses import replace
+
+    cfg = replace(CFG.partition, max_partitions=max_parts, max_cells=max_cells)
+    pset = build_partitions(pts, cfg)
+    assert 1 <= len(pset.partitions) <= max_parts
+    for part in pset.partitions:
+        members = np.concatenate([pset.cells[c] for c in part]) if len(part) else np.zeros(0)
+        assert sorted(members.tolist()) == list(range(len(pts)))
+
+
 @given(point_sets(max_n=60), st.floats(0.0, 0.5), st.floats(0.05, 2.0),
        st.integers(1, 12), st.integers(1, 80), st.booleans())
 def test_nested_add_equals_one_add_per_partition(pts, d_min, span, max_parts, max_cells, first):
