@@ -49,6 +49,11 @@ class UpdateWeights:
         Posterior cardinality pmf (log).
     log_partition_weight : (p,) array
         Normalised log-weight of each partition (its share of the likelihood).
+    possible : bool
+        False when no partition can explain the detections (every one holds more
+        detected objects than the cardinality allows, or a cell of several detections
+        nothing explains): then the scan carries no usable likelihood, and the weights
+        are the predicted ones, the cardinality the predicted pmf, no cell detected.
 
     """
 
@@ -56,6 +61,13 @@ class UpdateWeights:
     log_w_detected: np.ndarray
     log_card: np.ndarray
     log_partition_weight: np.ndarray
+    possible: bool = True
+
+
+def _prediction_stands(log_w, n_cells: int, log_card, n_part: int) -> UpdateWeights:
+    """The update of a scan no partition explains: the prediction, unchanged."""
+    return UpdateWeights(np.array(log_w, dtype=float), np.full((len(log_w), n_cells), NEG_INF),
+                         np.array(log_card, dtype=float), np.full(n_part, NEG_INF), False)
 
 
 def poisson_log_pmf(mean: float, n_max: int) -> np.ndarray:
@@ -433,8 +445,10 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
                 k_most)
             np.logaddexp.at(log_u_cell, cells, vals)
 
-    per_partition = lse_last(lam_P + log_card[None, :])
+    per_partition = lse_last(lam_P + log_card[None, :]) if n_part else np.zeros(0)
     log_L = lse1(per_partition)
+    if log_L == NEG_INF:
+        return _prediction_stands(log_w, n_cells, log_card, n_part)
     log_part_weight = per_partition - log_L
     log_u0 = lse1(u0_terms) - log_nbar - log_L
     log_u_cell = log_u_cell - log_nbar - log_L
@@ -470,7 +484,11 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
     clutter_only = cell_size == 1 if clutter_cells is None else (cell_size == 1) | clutter_cells
     log_d = np.logaddexp(np.where(clutter_only, 0.0, NEG_INF), log_sum)
     log_omega = np.array([np.sum(log_d[np.asarray(c)]) for c in partitions])
-    log_omega = log_omega - logsumexp(log_omega)
+    log_total = logsumexp(log_omega)
+    if log_total == NEG_INF:
+        card = poisson_log_pmf(float(np.exp(logsumexp(log_w))) if n_comp else 0.0, n_max)
+        return _prediction_stands(log_w, n_cells, card - logsumexp(card), len(partitions))
+    log_omega = log_omega - log_total
     log_cell_weight = np.full(n_cells, NEG_INF)
     for lo, cells in zip(log_omega, partitions):
         cells = np.asarray(cells)

@@ -19,7 +19,9 @@ Time handling (stamps from the scan header):
   ``time_gap``.
 
 Malformed scans raise nothing out of :func:`step`: they give a result with the previous
-estimates and event ``malformed_scan``, the reason in ``result.error``. The pipeline locks
+estimates and event ``malformed_scan``, the reason in ``result.error``. A scan that no
+partition of its returns can explain (every one holds more objects than ``model.n_max``)
+updates nothing: the tracks are predicted through it, event ``unexplained_scan``. The pipeline locks
 onto the first scan's ``frame_id``; a scan from another frame is answered the same way
 with event ``foreign_frame``.
 """
@@ -42,7 +44,8 @@ from .sensing.shadow import detection_model, pair_detection_probability
 from .state import Estimates, FilterState, find_sorted, StepDiagnostics
 from .tracker import gate_threshold, predict_state, sensor_noise, update_state
 
-EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame')
+EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
+          'unexplained_scan')
 
 
 @dataclass(frozen=True)
@@ -84,7 +87,7 @@ class StepResult:
     event : str or None
         One of :data:`EVENTS` when the scan was special.
     error : str or None
-        The reason of a malformed scan.
+        The reason of a malformed or unexplained scan.
     processing_time : float
         Seconds spent in :func:`step`.
 
@@ -282,13 +285,18 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         clutter_log_density=clutter)
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
+    error = None
+    if fdiag.unexplained:
+        event = event or 'unexplained_scan'
+        error = (f'no partition of the {len(points)} returns is possible (more objects than '
+                 f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
                        frame_id=frame, last_estimates=estimates, moved=moved,
                        scans=state.scans + 1,
                        elapsed=state.elapsed + dt)
     card, mean = _card_of(new_state)
     result = StepResult(now, frame, estimates, card, mean, points, bg_points, diag, event,
-                        None, 0.0)
+                        error, 0.0)
     result.processing_time = time.perf_counter() - t0
     return new_state, result
 

@@ -293,6 +293,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     else:
         out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
                          mc.clutter_rate, mc.n_max, lonely)
+    # no partition explains the scan (more objects than model.n_max in every one): the
+    # prediction stands, and the diagnostics say so
+    diag.unexplained = int(not out.possible)
 
     # posterior mixture: missed components, (component, cell) updates, births
     prune = cfg.reduction.prune_weight

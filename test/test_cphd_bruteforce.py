@@ -270,6 +270,34 @@ def test_a_cell_nothing_explains_is_clutter_return_by_return(seed):
     assert np.all(np.isfinite(out.log_partition_weight))
 
 
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_scan_no_partition_explains_leaves_the_prediction(mode):
+    """
+    The same partitions without the clutter mark (or none at all): no partition is
+    possible, so the update says so and hands back the prediction, never NaN.
+    """
+    s, f, c = make_world(0, dead=[2, 3])
+    card = np.random.default_rng(3).dirichlet(np.ones(5))
+    log_w, log_qd, log_g, cell_log_c, size, parts, masks, _ = _with_clutter_cell(card, s, f, c)
+    for partitions in (parts, []):
+        if mode == 'cphd':
+            out = cphd_update(log_w, log_qd, log_g, cell_log_c, size, partitions,
+                              np.log(card), poisson_log_pmf(1.0, M))
+            np.testing.assert_array_equal(out.log_card, np.log(card))
+        else:
+            out = phd_update(log_w, log_qd, log_g, cell_log_c, size, partitions, 1.0, 4)
+            # the PHD's cardinality is Poisson with the predicted mean
+            np.testing.assert_allclose(np.exp(out.log_card).sum(), 1.0, rtol=1e-12)
+        assert not out.possible
+        np.testing.assert_array_equal(out.log_w_missed, log_w)
+        assert np.all(out.log_w_detected == -np.inf)
+        assert len(out.log_partition_weight) == len(partitions)
+    # and an update that is possible says so
+    out = cphd_update(log_w, log_qd, log_g, cell_log_c, size, parts, np.log(card),
+                      poisson_log_pmf(1.0, M), _with_clutter_cell(card, s, f, c)[-1])
+    assert out.possible
+
+
 def test_log_domain_survives_extreme_scales():
     """a_W spanning hundreds of orders of magnitude: no overflow, same normalised result."""
     s, f, c = make_world(5)

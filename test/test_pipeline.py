@@ -200,3 +200,27 @@ def test_a_scan_of_one_beam_runs_with_the_background_on():
     assert res.diagnostics['beams'] == 1
     assert state.background.background[0] == pytest.approx(2.0, abs=0.01)  # after 2 s
 
+
+
+def test_a_scan_no_partition_explains_leaves_the_prediction_and_says_so():
+    # three people and the cardinality truncated at two (model.n_max set to 2 at run time,
+    # as through a parameter): every partition holds three objects' cells, none is possible
+    state = warm_state()
+    before = state.last_estimates
+    assert len(before) == 3
+    few = from_dict({'background': {'enabled': False}, 'model': {'n_max': 2}})
+    for k in (21, 22):
+        state, res = step(state, scans(k)[-1], few)
+        assert res.event == 'unexplained_scan' and 'model.n_max = 2' in res.error
+        assert res.diagnostics['unexplained'] == 1
+        assert np.isfinite(state.filter.mixture.w).all()
+        assert np.isfinite(res.cardinality).all()
+        assert res.cardinality.sum() == pytest.approx(1.0, abs=1e-12)
+        # predicted through, not updated: two of the ids (N_max = 2), each where its
+        # velocity took it
+        est = res.estimates
+        assert len(est) == 2 and set(est.label) <= set(before.label)
+        at = np.searchsorted(before.label, est.label)
+        elapsed = 0.1 * (k - 20)
+        np.testing.assert_allclose(est.m[:, :2], before.m[at, :2] + elapsed * before.m[at, 2:],
+                                   atol=1e-9)
