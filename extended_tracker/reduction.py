@@ -31,6 +31,17 @@ def _trigamma(x):
     return zeta(2.0, x)
 
 
+def _gamma_shape_start(c):
+    """
+    Minka's starting point for the shape ``a`` of ``log a - digamma(a) = c`` (c > 0),
+    ``(3 - c + r) / (12 c)`` with ``r = sqrt((c - 3)^2 + 24 c)``, taken for ``c >= 3`` as
+    the equal ``2 / (r + c - 3)``: there ``3 - c + r`` cancels (to 0 once ``c`` passes
+    some 1e16, as for a rate whose shape forgetting drove towards 0).
+    """
+    r = np.sqrt((c - 3) ** 2 + 24 * c)
+    return np.where(c < 3, (3 - c + r) / (12 * c), 2.0 / (r + c - 3))
+
+
 def merge_gamma(w, alpha, beta):
     """
     Moment-matched Gamma of a weighted Gamma mixture (``w`` normalised inside).
@@ -44,7 +55,7 @@ def merge_gamma(w, alpha, beta):
     if c <= 1e-12:
         a = float(np.sum(wn * alpha))
         return a, a / mean
-    a = (3 - c + np.sqrt((c - 3) ** 2 + 24 * c)) / (12 * c)     # Minka's starting point
+    a = float(_gamma_shape_start(c))
     for _ in range(20):
         f = np.log(a) - digamma(a) - c
         fp = 1 / a - _trigamma(a)
@@ -213,7 +224,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     mean = np.add.reduceat(wn * al / be, starts)
     elog = np.add.reduceat(wn * (digamma(al) - np.log(be)), starts)
     c = np.maximum(np.log(mean) - elog, 1e-12)
-    a = (3 - c + np.sqrt((c - 3) ** 2 + 24 * c)) / (12 * c)      # Minka's start
+    a = _gamma_shape_start(c)
     for _ in range(20):
         step = (np.log(a) - digamma(a) - c) / (1 / a - _trigamma(a))
         a = np.where(a - step > 0, a - step, a / 2)

@@ -132,3 +132,27 @@ def test_nu_solver_matches_brentq_and_clamps_to_the_bracket():
         else:
             want = brentq(f, lo[i], hi[i], args=(target[i],), xtol=1e-14, rtol=1e-15)
         assert got[i] == pytest.approx(want, rel=1e-9)
+
+
+@pytest.mark.parametrize('shape', [3.0, 1e-3, 1e-12, 1e-28])
+def test_gamma_merge_of_equal_members_keeps_their_shape_down_to_vanishing_shapes(shape):
+    """
+    Members with one Gamma: the match ``log a - digamma(a) = log E[g] - E[log g]`` is
+    solved by their own shape. A rate forgotten with a short ``model.tau_rate`` has a
+    shape near 0, where ``c`` passes 1e16 and Minka's starting point, in its textbook
+    form, cancelled to 0 (log 0 in the first Newton step, NaN weights after it).
+    """
+    from extended_tracker.reduction import merge_gamma
+
+    mix = mixture([0.6, 0.4], [14.0, 14.0], [extent(0.3, 0.2, 0.0)] * 2)
+    mix = Mixture(mix.w, np.full(2, shape), np.full(2, shape / 12.0), mix.m, mix.P, mix.v,
+                  mix.V, mix.label)
+    with np.errstate(all='raise'):
+        out = merge_groups(mix, [np.arange(2)])
+        a, b = merge_gamma(mix.w, mix.alpha, mix.beta)
+    # Newton stops at a relative step of 1e-10 (1e-12 per group), and near 0 the equation
+    # log a - digamma(a) = 1/a + O(log a) pins a to about that
+    assert out.alpha[0] == pytest.approx(shape, rel=1e-8)
+    assert a == pytest.approx(shape, rel=1e-8)
+    assert out.alpha[0] / out.beta[0] == pytest.approx(12.0, rel=1e-8)
+    assert a / b == pytest.approx(12.0, rel=1e-8)
