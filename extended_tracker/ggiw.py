@@ -298,6 +298,9 @@ def cv_matrices(dt: float, sigma_accel: float):
     return F, sigma_accel ** 2 * Q
 
 
+FORGET_FLOOR = 1e-9      # least Gamma shape, and IW v - 6, that forgetting leaves
+
+
 @lru_cache(maxsize=256)                # scan periods jitter in recordings
 def _forgetting(dt: float, tau: float):
     """``exp(-dt / tau)``, the factor a step of ``dt`` s keeps of a time constant ``tau``."""
@@ -324,7 +327,10 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
     -----
     ``alpha+ = alpha e^{-dt/tau_r}``, ``beta+ = beta e^{-dt/tau_r}`` (mean kept);
     ``v+ = 6 + e^{-dt/tau_X} (v - 6)``, ``V+ = (v+ - 6)/(v - 6) V`` (mean kept). Forgetting
-    is per second, not per scan (trap 3), and V is rescaled with v (trap 4).
+    is per second, not per scan (trap 3), and V is rescaled with v (trap 4). What it
+    leaves of ``alpha`` and of ``v - 6`` is held at ``FORGET_FLOOR`` at least (means kept):
+    with a time constant far below the scan period, or a track coasting for long, it
+    would underflow to 0, and the rate and extent to 0/0.
 
     """
     if dt < 0:
@@ -336,10 +342,16 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
     P = symmetrize(F @ mix.P @ F.T + Q)
     k_rate = _forgetting(dt, tau_rate)
     k_ext = _forgetting(dt, tau_extent)
+    alpha, beta = mix.alpha * k_rate, mix.beta * k_rate
+    if np.minimum.reduce(alpha) < FORGET_FLOOR:
+        low = alpha < FORGET_FLOOR
+        beta = np.where(low, FORGET_FLOOR * (mix.beta / mix.alpha), beta)
+        alpha = np.where(low, FORGET_FLOOR, alpha)
     v_new = IW_OFFSET + k_ext * (mix.v - IW_OFFSET)
+    if np.minimum.reduce(v_new) < IW_OFFSET + FORGET_FLOOR:
+        v_new = np.maximum(v_new, IW_OFFSET + FORGET_FLOOR)
     V_new = mix.V * ((v_new - IW_OFFSET) / (mix.v - IW_OFFSET))[:, None, None]
-    return Mixture(mix.w * p_survival ** dt, mix.alpha * k_rate, mix.beta * k_rate, m, P,
-                   v_new, V_new, mix.label)
+    return Mixture(mix.w * p_survival ** dt, alpha, beta, m, P, v_new, V_new, mix.label)
 
 
 # --- update with one cell (section 3), batched over (component, cell) pairs ---

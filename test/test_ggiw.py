@@ -211,6 +211,28 @@ def test_prediction_keeps_means_and_forgets_per_second():
     np.testing.assert_allclose(a.m[:, :2], mix.m[:, :2] + 0.1 * mix.m[:, 2:])
 
 
+@pytest.mark.parametrize('tau', [1e-3, 1e-6])
+def test_forgetting_far_faster_than_the_scan_keeps_the_parameters_valid(tau):
+    """
+    A time constant far below the scan period forgets nearly everything each step; what
+    is left of alpha and of v - 6 stays at the floor instead of underflowing to 0, so the
+    rate and extent means survive (they were 0/0), over many steps of coasting too.
+    """
+    from extended_tracker.ggiw import FORGET_FLOOR
+
+    rng = np.random.default_rng(6)
+    mix = random_mixture(rng, 3)
+    out = mix
+    for _ in range(50):
+        # the factor e^{-dt/tau} itself may underflow to 0: that is its limit
+        with np.errstate(divide='raise', invalid='raise', over='raise'):
+            out = predict(out, 0.1, 0.99, 2.0, tau, tau)
+    assert np.all(out.alpha == FORGET_FLOOR) and np.all(out.beta > 0)
+    assert np.all(out.v > 6) and np.all(out.v - 6 <= 2 * FORGET_FLOOR)
+    np.testing.assert_allclose(out.expected_rate(), mix.expected_rate(), rtol=1e-9)
+    np.testing.assert_allclose(out.expected_extent(), mix.expected_extent(), rtol=1e-6)
+
+
 def test_log_gamma2_equals_scipy_multigammaln():
     from extended_tracker.ggiw import log_gamma2
 
