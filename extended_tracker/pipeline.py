@@ -19,11 +19,11 @@ Time handling (stamps from the scan header):
   ``time_gap``.
 
 Malformed scans raise nothing out of :func:`step`: they give a result with the previous
-estimates and event ``malformed_scan``, the reason in ``result.error``. A scan that no
-partition of its returns can explain (every one holds more objects than ``model.n_max``)
-updates nothing: the tracks are predicted through it, event ``unexplained_scan``. The pipeline locks
+estimates and event ``malformed_scan``, the reason in ``result.error``. The pipeline locks
 onto the first scan's ``frame_id``; a scan from another frame is answered the same way
-with event ``foreign_frame``.
+with event ``foreign_frame``. A scan that no partition of its returns can explain (every
+one holds more objects than ``model.n_max``) updates nothing: the tracks are predicted
+through it, event ``unexplained_scan``, the reason in ``result.error``.
 """
 
 from __future__ import annotations
