@@ -31,6 +31,9 @@ def _trigamma(x):
     return zeta(2.0, x)
 
 
+_TINY = np.finfo(float).tiny
+
+
 def _gamma_shape_start(c):
     """
     Minka's starting point for the shape ``a`` of ``log a - digamma(a) = c`` (c > 0),
@@ -274,7 +277,9 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     within squared Mahalanobis distance ``merge_distance`` of its position.
 
     """
-    keep = mix.w >= prune_weight
+    # a weight of 0 (or below the smallest normal double) is pruned even with
+    # prune_weight 0: a group of such members has no weight to match moments by
+    keep = mix.w >= max(prune_weight, _TINY)
     if not np.logical_and.reduce(keep):
         mix = mix.take(keep)
     if not len(mix):

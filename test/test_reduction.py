@@ -156,3 +156,20 @@ def test_gamma_merge_of_equal_members_keeps_their_shape_down_to_vanishing_shapes
     assert a == pytest.approx(shape, rel=1e-8)
     assert out.alpha[0] / out.beta[0] == pytest.approx(12.0, rel=1e-8)
     assert a / b == pytest.approx(12.0, rel=1e-8)
+
+
+def test_components_of_zero_weight_go_even_with_prune_weight_zero():
+    """
+    A CPHD whose cardinality rules out more objects gives some components a weight of
+    exactly 0; with ``reduction.prune_weight`` 0 they were kept, and two of one label,
+    both at 0, merged to 0/0 (NaN everywhere after).
+    """
+    from extended_tracker.reduction import reduce_mixture
+
+    X = [extent(0.3, 0.2, 0.0)] * 3
+    mix = mixture([0.0, 0.0, 0.7], [14.0, 14.0, 14.0], X)
+    mix = Mixture(mix.w, mix.alpha, mix.beta, mix.m, mix.P, mix.v, mix.V,
+                  np.array([4, 4, 5], dtype=np.int64))
+    with np.errstate(all='raise'):
+        out, capped = reduce_mixture(mix, 0.0, 4.0, 100)
+    assert out.label.tolist() == [5] and out.w.tolist() == [0.7] and capped == 0
