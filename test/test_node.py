@@ -246,6 +246,26 @@ def test_robustness_every_case_counted_never_a_crash(harness):
     assert len(harness.tracks) == harness.node.scans == 17      # 10 good + 7 special
 
 
+def test_a_scan_no_partition_explains_is_published_and_counted(harness):
+    """
+    model.n_max set to 1 at run time with three people in view: no partition of a scan
+    is possible. Every scan is still answered, with the tracks predicted through it; the
+    event is counted (logged once), and nothing is an internal error.
+    """
+    data = simulate(tutorial_scene(), 3.0, seed=0)
+    for scan, _ in data[:20]:
+        harness.send(ros_scan(scan))
+    assert len(harness.tracks[-1].objects) >= 2
+    res = harness.node.set_parameters([Parameter('model.n_max', value=1)])[0]
+    assert res.successful
+    for scan, _ in data[20:25]:
+        out = harness.send(ros_scan(scan))
+        assert len(out.objects) == 1                  # at most N_max reported, never none
+    c = harness.node.counts
+    assert c.get('unexplained_scan') == 5 and 'internal_error' not in c
+    assert len(harness.tracks) == harness.node.scans == 25
+
+
 def test_parameters_from_the_yaml_file_and_descriptors():
     h = Harness(args=['--ros-args', '--params-file', str(YAML)])
     try:
