@@ -48,3 +48,9 @@ def test_crowd_walkers_are_redrawn_until_nobody_overlaps():
     assert overlaps(kept) == 0
     # one random stream: the walkers before the first redraw are the same
     assert kept[0] == free[0]
+
+
+def test_a_crowd_that_cannot_fit_is_refused_not_drawn_forever():
+    with pytest.raises(ValueError, match='walkers fit without overlapping'):
+        # twelve walkers on a ring 1.5-1.6 m out, for 2 s: they cannot all keep apart
+        crowd_scene(12, seed=1, range_max=2.0, seconds=2.0)

@@ -338,6 +338,9 @@ def crossing_scene() -> Scene:
     ), laser=LaserSpec())
 
 
+MAX_DRAWS = 200          # draws per walker before a crowd that cannot fit is refused
+
+
 def crowd_scene(n: int = 20, seed: int = 5, beams: int = 361, fov_deg: float = 180.0,
                 range_max: float = 13.0, clutter: float = 0.0,
                 seconds: float | None = None) -> Scene:
@@ -347,11 +350,22 @@ def crowd_scene(n: int = 20, seed: int = 5, beams: int = 361, fov_deg: float = 1
     With ``seconds``, a walker whose bounding circle would overlap that of one drawn
     before it in that time is drawn again, so that nobody walks through anybody; without
     it walkers may pass through one another (the timing benchmarks).
+
+    Raises
+    ------
+    ValueError
+        If ``MAX_DRAWS`` draws a walker leave the crowd short of ``n`` (too many for the
+        space and time).
     """
     rng = np.random.default_rng(seed)
     times = _gap_times(seconds) if seconds is not None else None
     objs, tracks = [], []
+    draws = 0
     while len(objs) < n:
+        draws += 1
+        if draws > MAX_DRAWS * n:
+            raise ValueError(f'crowd_scene: only {len(objs)} of {n} walkers fit without '
+                             f'overlapping in {seconds} s ({MAX_DRAWS * n} draws)')
         r = rng.uniform(1.5, range_max * 0.8)
         a = rng.uniform(-math.radians(fov_deg) / 2 * 0.9, math.radians(fov_deg) / 2 * 0.9)
         h = rng.uniform(-math.pi, math.pi)
