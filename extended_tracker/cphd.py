@@ -376,15 +376,28 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         log_psi = np.full(n_cells, NEG_INF)
     log_a = log_psi - cell_log_c
     n_part = len(partitions)
-    sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
-    clutter_extra = None
-    if clutter_cells is not None and n_part:
-        # a clutter cell of |W| detections is |W| singletons: |W| - 1 more cells
-        extra = np.where(clutter_cells, np.asarray(cell_size) - 1, 0)
-        clutter_extra = np.array([extra[np.asarray(p, dtype=np.int64)].sum()
-                                  for p in partitions], dtype=np.int64)
-    k_most = (max(map(len, partitions), default=0) if clutter_extra is None
-              else int((sizes + clutter_extra).max()))
+    k_most = 0
+    if n_part:
+        # flatten: one row per (partition, cell)
+        sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
+        flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in partitions])
+        pid = np.repeat(np.arange(n_part), sizes)
+        single = cell_size[flat] == 1
+        la = log_a[flat]
+        k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
+        k2 = sizes - k1
+        if clutter_cells is not None:
+            # a clutter cell is its detections as singletons that no component explains
+            # (a_W = -inf: inactive, clutter only): they count in k1, not as a cell in k2,
+            # and put no a_W into A_P
+            cc = clutter_cells[flat]
+            k2 -= np.bincount(pid, weights=cc, minlength=n_part).astype(np.int64)
+            k1 = k1 + np.bincount(pid, weights=np.where(cc, cell_size[flat], 0),
+                                  minlength=n_part).astype(np.int64)
+            la = np.where(cc, NEG_INF, la)
+            single = single | cc
+        # the most cells of a partition, a clutter cell counted as its detections
+        k_most = int((sizes if clutter_cells is None else k1 + k2).max())
     T = _log_lambda_table(log_q0, n_max, k_most)
     lf = _log_factorial(k_most + 1)
     need = k_most + 1
@@ -401,23 +414,6 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     u0_terms = np.full(n_part, NEG_INF)
     log_u_cell = np.full(n_cells, NEG_INF)
     if n_part:
-        # flatten: one row per (partition, cell)
-        flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in partitions])
-        pid = np.repeat(np.arange(n_part), sizes)
-        single = cell_size[flat] == 1
-        la = log_a[flat]
-        k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
-        k2 = sizes - k1
-        if clutter_extra is not None:
-            # a clutter cell is its detections as singletons that no component explains
-            # (a_W = -inf: inactive, clutter only): they count in k1, not as a cell in k2,
-            # and put no a_W into A_P
-            cc = clutter_cells[flat]
-            k2 -= np.bincount(pid, weights=cc, minlength=n_part).astype(np.int64)
-            k1 = k1 + np.bincount(pid, weights=np.where(cc, cell_size[flat], 0),
-                                  minlength=n_part).astype(np.int64)
-            la = np.where(cc, NEG_INF, la)
-            single = single | cc
         n_active = np.bincount(pid, weights=single & np.isfinite(la),
                                minlength=n_part).astype(np.int64)
         log_A = np.bincount(pid, weights=np.where(single, 0.0, la), minlength=n_part)
