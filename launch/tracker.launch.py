@@ -1,13 +1,17 @@
 """
 ``ros2 launch extended_tracker tracker.launch.py [scan:=/front/scan] [preset:=leg_height]
-[params_file:=/path/to/tracker.yaml] [use_sim_time:=true]``
+[params_file:=/path/to/tracker.yaml] [use_sim_time:=true] [rviz:=true [rviz_frame:=laser]]``
 
 Starts ``tracker_node`` with the installed ``config/tracker.yaml`` (or ``params_file``),
 then the preset's changes (``config/<preset>.yaml``) when one is named, and the input topic
 remapped to ``scan``. ``use_sim_time`` for a bag played with ``ros2 bag play --clock``.
+``rviz:=true`` also starts RViz2 with the installed ``rviz/tracker.rviz``, its scan display
+on ``scan`` and its fixed frame ``rviz_frame`` (the scan's ``frame_id`` when no TF is
+published).
 """
 
 import os
+import tempfile
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
@@ -29,14 +33,43 @@ def parameter_files(share: str, params_file: str, preset: str) -> list:
     return files
 
 
+def rviz_config(share: str, scan_topic: str, out_dir: str) -> str:
+    """
+    The installed RViz config with its LaserScan display on ``scan_topic`` (a relative
+    name is taken from the root namespace, as the node's remapping is), written to
+    ``out_dir``; returns its path.
+    """
+    import yaml
+
+    with open(os.path.join(share, 'rviz', 'tracker.rviz')) as f:
+        config = yaml.safe_load(f)
+    topic = scan_topic if scan_topic.startswith('/') else '/' + scan_topic
+    scans = [d for d in config['Visualization Manager']['Displays']
+             if d['Class'] == 'rviz_default_plugins/LaserScan']
+    for display in scans:
+        display['Topic']['Value'] = topic
+    path = os.path.join(out_dir, 'extended_tracker.rviz')
+    with open(path, 'w') as f:
+        yaml.safe_dump(config, f, sort_keys=False)
+    return path
+
+
 def _node(context, *args, **kwargs):
     share = get_package_share_directory(PACKAGE)
     files = parameter_files(share, LaunchConfiguration('params_file').perform(context),
                             LaunchConfiguration('preset').perform(context))
     sim_time = LaunchConfiguration('use_sim_time').perform(context).lower() == 'true'
-    return [Node(package=PACKAGE, executable='tracker_node', name='extended_tracker',
-                 output='screen', parameters=files + [{'use_sim_time': sim_time}],
-                 remappings=[('scan', LaunchConfiguration('scan').perform(context))])]
+    scan = LaunchConfiguration('scan').perform(context)
+    nodes = [Node(package=PACKAGE, executable='tracker_node', name='extended_tracker',
+                  output='screen', parameters=files + [{'use_sim_time': sim_time}],
+                  remappings=[('scan', scan)])]
+    if LaunchConfiguration('rviz').perform(context).lower() == 'true':
+        config = rviz_config(share, scan, tempfile.mkdtemp(prefix='extended_tracker_'))
+        frame = LaunchConfiguration('rviz_frame').perform(context)
+        nodes.append(Node(package='rviz2', executable='rviz2', name='rviz2',
+                          arguments=['-d', config, '-f', frame],
+                          parameters=[{'use_sim_time': sim_time}]))
+    return nodes
 
 
 def generate_launch_description():
@@ -50,5 +83,10 @@ def generate_launch_description():
                                           'config/tracker.yaml)'),
         DeclareLaunchArgument('use_sim_time', default_value='false',
                               description='use /clock (a bag played with --clock)'),
+        DeclareLaunchArgument('rviz', default_value='false',
+                              description='also start RViz2 with the scan and the tracks'),
+        DeclareLaunchArgument('rviz_frame', default_value='laser',
+                              description="RViz's fixed frame: the scan's frame_id when no "
+                                          'TF is published'),
         OpaqueFunction(function=_node),
     ])

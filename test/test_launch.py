@@ -67,8 +67,9 @@ def test_node_gets_the_installed_parameters_and_the_remapped_scan(launch_module)
     from ament_index_python.packages import get_package_prefix, get_package_share_directory
 
     declared, make_node = _args(launch_module.generate_launch_description())
-    assert declared == {'scan': 'scan', 'preset': '', 'params_file': '', 'use_sim_time': 'false'}
-    (node,) = make_node(dict(declared, scan='/front/scan'))
+    assert declared == {'scan': 'scan', 'preset': '', 'params_file': '', 'use_sim_time': 'false',
+                        'rviz': 'false', 'rviz_frame': 'laser'}
+    (node,) = make_node(dict(declared, scan='/front/scan'))       # no RViz unless asked
     kw = node.kwargs
     assert kw['package'] == 'extended_tracker' and kw['name'] == 'extended_tracker'
     exe = Path(get_package_prefix('extended_tracker')) / 'lib' / 'extended_tracker'
@@ -92,3 +93,30 @@ def test_a_preset_applies_after_the_base_file_and_an_unknown_one_is_refused(laun
     assert node.kwargs['parameters'][0] == '/site/my.yaml'
     with pytest.raises(RuntimeError, match='no preset'):
         make_node(dict(declared, preset='ceiling'))
+
+
+def test_rviz_starts_on_request_with_the_scan_topic_and_fixed_frame(launch_module):
+    import yaml
+    from ament_index_python.packages import get_package_share_directory
+
+    declared, make_node = _args(launch_module.generate_launch_description())
+    installed = Path(get_package_share_directory('extended_tracker')) / 'rviz' / 'tracker.rviz'
+    with open(installed) as f:
+        original = yaml.safe_load(f)
+    for scan, topic in (('/front/scan', '/front/scan'), ('scan', '/scan')):
+        tracker, rviz = make_node(dict(declared, scan=scan, rviz='True', rviz_frame='base_scan',
+                                       use_sim_time='true'))
+        assert tracker.kwargs['remappings'] == [('scan', scan)]
+        kw = rviz.kwargs
+        assert (kw['package'], kw['executable']) == ('rviz2', 'rviz2')
+        assert kw['parameters'] == [{'use_sim_time': True}]
+        flag, path, frame_flag, frame = kw['arguments']
+        assert (flag, frame_flag, frame) == ('-d', '-f', 'base_scan')
+        with open(path) as f:
+            written = yaml.safe_load(f)
+        # the written copy is the installed config with the scan display on the topic
+        displays = written['Visualization Manager']['Displays']
+        (laser,) = [d for d in displays if d['Class'] == 'rviz_default_plugins/LaserScan']
+        assert laser['Topic']['Value'] == topic
+        laser['Topic']['Value'] = '/scan'
+        assert written == original

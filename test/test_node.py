@@ -186,6 +186,27 @@ def test_markers_are_built_only_while_someone_listens(marker_builds):
         h.close()
 
 
+def test_the_rviz_config_shows_what_the_node_publishes(harness):
+    """rviz/tracker.rviz subscribes to the node's scan and marker topics with QoS that
+    matches, and shows every marker namespace the node publishes."""
+    from extended_tracker.messages import MARKER_NAMESPACES
+
+    with open(ROOT / 'rviz' / 'tracker.rviz') as f:
+        config = yaml.safe_load(f)
+    displays = {d['Class']: d for d in config['Visualization Manager']['Displays']}
+    laser = displays['rviz_default_plugins/LaserScan']
+    assert laser['Topic']['Value'] == harness.node.sub.topic_name == '/scan'
+    # best effort takes a reliable or a best-effort scan publisher alike
+    assert laser['Topic']['Reliability Policy'] == 'Best Effort'
+    markers = displays['rviz_default_plugins/MarkerArray']
+    assert markers['Topic']['Value'] == harness.node.pub_markers.topic_name
+    assert markers['Topic']['Reliability Policy'] == 'Reliable'      # as the node publishes
+    assert set(markers['Namespaces']) == set(MARKER_NAMESPACES)
+    for scan, _ in simulate(tutorial_scene(), 1.0, seed=1):
+        harness.send(ros_scan(scan))
+    assert {m.ns for arr in harness.markers for m in arr.markers} == set(MARKER_NAMESPACES)
+
+
 def test_reset_service_drops_the_tracks_and_their_markers(harness):
     from std_srvs.srv import Trigger
 

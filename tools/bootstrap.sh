@@ -107,9 +107,9 @@ if newer "$stamps/msgs" "$msgs_src"/msg/*.msg "$msgs_src/CMakeLists.txt" "$msgs_
 fi
 
 # A regular (not editable) install, so that data_files (ament index marker, package.xml,
-# config, launch) land in the prefix as on a colcon install; re-run whenever a package file changes.
-mapfile -t package_files < <(find "$root/extended_tracker" "$root/config" "$root/launch" -type f \
-  \( -name '*.py' -o -name '*.yaml' -o -name 'py.typed' \))
+# config, launch, rviz) land in the prefix as on a colcon install; re-run whenever a package file changes.
+mapfile -t package_files < <(find "$root/extended_tracker" "$root/config" "$root/launch" "$root/rviz" \
+  -type f \( -name '*.py' -o -name '*.yaml' -o -name '*.rviz' -o -name 'py.typed' \))
 if newer "$stamps/package" "$root/setup.py" "$root/setup.cfg" "$root/package.xml" \
     "$root/resource/extended_tracker" "${package_files[@]}"; then
   log 'installing extended_tracker'
