@@ -114,8 +114,6 @@ class BirthConfig:
                               0.0, 1e5, lo_open=True)
     weight: float = _f(0.1, 'weight of each birth-region component per scan', '', 0.0, 1.0,
                        lo_open=True)
-    position_std: float = _f(0.5, 'position std of a birth-region component', 'm', 0.0, 100.0,
-                             lo_open=True)
     regions: list = _f([], 'birth regions, flat list of x, y, std triples', 'm')
 
 
