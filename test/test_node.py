@@ -324,6 +324,28 @@ def test_invalid_values_are_refused_with_a_reason(harness):
     assert res.successful and harness.node.cfg.model.mode == 'phd'
 
 
+def test_unknown_parameters_are_named_once_with_the_nearest_known_one():
+    """rclpy ignores parameters a node never declares: a misspelt one in a parameter file
+    would leave its default in force. The node names them once at start-up (counted in
+    its diagnostics) and runs on with the rest."""
+    h = Harness(args=['--ros-args', '-p', 'model.clutter_rte:=2.0'],
+                overrides=[Parameter('birth.position_std', value=0.5),
+                           Parameter('background.enabled', value=False)])
+    try:
+        assert h.node.unknown_parameters == ['birth.position_std', 'model.clutter_rte']
+        assert h.node.counts == {'unknown_parameter': 1}
+        assert h.node.cfg.background.enabled is False          # the known ones apply
+        reply = h.send(ros_scan(simulate(tutorial_scene(), 0.1, seed=1)[0][0]))
+        assert reply is not None
+    finally:
+        h.close()
+    h = Harness(overrides=[Parameter('background.enabled', value=False)])
+    try:
+        assert h.node.unknown_parameters == [] and h.node.counts == {}
+    finally:
+        h.close()
+
+
 def test_invalid_value_at_start_up_is_refused():
     with pytest.raises(Exception, match='model.mode'):
         Harness(overrides=[Parameter('model.mode', value='kalman')])

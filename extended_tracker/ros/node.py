@@ -13,6 +13,8 @@ calls.
 
 from __future__ import annotations
 
+import difflib
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from extended_tracker_msgs.msg import ExtendedObjectArray
 from rcl_interfaces.msg import (
@@ -77,6 +79,7 @@ class TrackerNode(Node):
         self.state = PipelineState.initial(self.cfg)
         self.marker_ids: set = set()
         self.counts: dict = {}
+        self.unknown_parameters = self._check_overrides()
         self.scans = 0
         reliable = QoSProfile(depth=10)
         self.pub_tracks = self.create_publisher(ExtendedObjectArray, 'tracks', reliable)
@@ -101,6 +104,27 @@ class TrackerNode(Node):
             flat[name] = list(value) if isinstance(default, list) and value is not None else (
                 default if value is None else value)
         return from_flat(flat)           # raises ConfigError with the reason
+
+    def _check_overrides(self) -> list:
+        """
+        Names given to the node (a parameter file, ``-p``, overrides) that it does not
+        have, said once at start-up with the nearest known name: rclpy ignores them, so a
+        misspelt parameter would otherwise leave its default in force without a word.
+        (The offline tools refuse an unknown key outright; a parameter file's ``/**``
+        section may hold other nodes' parameters, so the node runs on.)
+        """
+        unknown = sorted(name for name in getattr(self, '_parameter_overrides', {})
+                         if not self.has_parameter(name))
+        if unknown:
+            known = list(to_flat(TrackerConfig()))
+            said = []
+            for name in unknown:
+                near = difflib.get_close_matches(name, known, n=1)
+                said.append(f'{name} (did you mean {near[0]}?)' if near else name)
+            self.counts['unknown_parameter'] = 1                  # in the diagnostics
+            self.get_logger().warning(f'{len(unknown)} given parameter(s) this node does not '
+                                      f'have, ignored: {", ".join(said)}')
+        return unknown
 
     def _on_set_parameters(self, params) -> SetParametersResult:
         flat = to_flat(self.cfg)
