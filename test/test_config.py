@@ -72,3 +72,16 @@ def test_presets_and_their_yaml_files_agree():
         assert changed == {f'{sec}.{key}' for sec, kv in changes.items() for key in kv}
     with pytest.raises(ConfigError, match='unknown preset'):
         preset('nope')
+
+
+def test_every_field_is_read_by_the_package():
+    """A proxy for "every parameter does something": each field's name is read as an
+    attribute somewhere in the package outside the configuration module (the dead
+    ``birth.position_std`` sat in the parameters from the first commit on)."""
+    import re
+
+    root = Path(__file__).resolve().parents[1] / 'extended_tracker'
+    source = '\n'.join(p.read_text() for p in root.rglob('*.py') if p.name != 'config.py')
+    unread = [name for name, _, _ in iter_leaves(TrackerConfig())
+              if not re.search(r'\.' + name.split('.')[-1] + r'\b', source)]
+    assert unread == []

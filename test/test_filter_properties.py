@@ -227,6 +227,45 @@ def test_filter_follows_n_max_changed_while_running():
         assert np.isclose(np.exp(new.log_card).sum(), 1.0, atol=1e-9)
 
 
+def test_birth_regions_enter_the_prediction_and_its_cardinality():
+    """Each configured region (x, y, std) is a birth component at rest at (x, y) with
+    position std ``std``, the birth prior's velocity, extent and rate, weight
+    ``birth.weight`` and a label of its own; its weight adds to the predicted cardinality's
+    mean (from no objects: the regions' weights plus the uniform birth ``rate dt``). A
+    walker standing in a region is then reported under the region's label."""
+    from extended_tracker.config import from_dict
+    from extended_tracker.tracker import predict_state
+
+    cfg = from_dict({'birth': {'regions': [1.0, 2.0, 0.3, 4.0, -1.0, 0.6], 'weight': 0.2}})
+    b = cfg.birth
+    state = FilterState.initial(cfg)
+    pred = predict_state(state, 0.1, cfg)
+    mix = pred.mixture
+    np.testing.assert_array_equal(mix.m, [[1.0, 2.0, 0.0, 0.0], [4.0, -1.0, 0.0, 0.0]])
+    np.testing.assert_allclose(mix.P[:, [0, 1, 2, 3], [0, 1, 2, 3]],
+                               [[0.09, 0.09, b.velocity_std ** 2, b.velocity_std ** 2],
+                                [0.36, 0.36, b.velocity_std ** 2, b.velocity_std ** 2]])
+    assert not np.any(mix.P[:, [0, 0, 1], [1, 2, 3]])
+    np.testing.assert_array_equal(mix.w, [0.2, 0.2])
+    np.testing.assert_array_equal(mix.label, [state.next_label, state.next_label + 1])
+    assert pred.next_label == state.next_label + 2
+    np.testing.assert_allclose(mix.expected_extent(), [b.extent_semi_axis ** 2 * np.eye(2)] * 2)
+    np.testing.assert_allclose(mix.alpha / mix.beta, b.expected_rate)
+    card = np.exp(pred.log_card)
+    assert np.isclose(card @ np.arange(len(card)), 0.4 + b.rate * 0.1, rtol=1e-9)
+
+    # a walker at the first region: its returns, the same every scan (an arc of radius
+    # 0.2 m facing the scanner at the origin)
+    t = np.linspace(-1.2, 1.2, 12) + np.arctan2(-2.0, -1.0)
+    walker = np.column_stack([1.0 + 0.2 * np.cos(t), 2.0 + 0.2 * np.sin(t)])
+    state = FilterState.initial(cfg)
+    first = state.next_label
+    for _ in range(8):
+        state, est, _ = filter_step(state, walker, 0.1, cfg)
+    assert list(est.label) == [first]
+    assert np.linalg.norm(est.m[0, :2] - [1.0, 2.0]) < 0.2
+
+
 @given(st.integers(0, 10_000), st.sampled_from(['cphd', 'phd']))
 def test_filter_step_cardinality_sums_to_one(seed, mode):
     from extended_tracker.config import from_dict
