@@ -31,7 +31,6 @@ except ImportError:                      # pragma: no cover - other numpy releas
 
 D = 2                     # extent dimension
 IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
-H_IDX = (0, 1)            # position entries of the kinematic state [px, py, vx, vy]
 
 
 @dataclass(frozen=True)

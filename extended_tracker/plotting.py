@@ -3,7 +3,7 @@ Pictures of a run (an edge module: it adds matplotlib, Agg backend, no display n
 
 :func:`plot_run` draws a whole sequence: detections faint, background returns fainter,
 each id's trajectory in its own colour with its last outline and label, the sensor and
-its field of view. :func:`plot_scan` draws one scan with its scan shadows.
+its field of view.
 """
 
 from __future__ import annotations
@@ -120,27 +120,3 @@ def _fit(ax, results, fov):
     lo = np.minimum(lo, -0.5)
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
-
-
-def plot_scan(result, scan_points, path, title=''):
-    """One scan: returns, shadows behind each return (grey rays), estimates with ids."""
-    fig, ax = plt.subplots(figsize=(9, 7), dpi=110)
-    sp = scan_points
-    _sensor(ax, sp.angle_lo, sp.angle_hi, sp.range_max)
-    ok = np.isfinite(sp.ranges)
-    for a, r in zip(sp.angles[ok], sp.ranges[ok]):
-        c, s = math.cos(a), math.sin(a)
-        ax.plot([r * c, sp.range_max * c], [r * s, sp.range_max * s], color='0.85', lw=0.6,
-                zorder=1)
-    ax.scatter(sp.points[:, 0], sp.points[:, 1], s=3, c='k', zorder=3)
-    e = result.estimates
-    for j, lab in enumerate(e.label.tolist()):
-        col = id_colour(lab)
-        _outline(ax, e, j, col, lw=2)
-        ax.annotate(f'{lab} (vis {e.visibility[j]:.2f})', e.m[j, :2], xytext=(4, 4),
-                    textcoords='offset points', color=col, fontsize=8)
-    ax.set_aspect('equal')
-    ax.set_title(title or 'scan, shadows (grey) and estimates')
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
