@@ -252,9 +252,10 @@ def test_any_config_in_range_runs_without_nan_or_raising():
     forgetting time constants, a tight cell cap, a small N_max and a large min_points
     were found to break the filter.
     """
-    from hypothesis import given, strategies as st
+    from hypothesis import assume, given, strategies as st
 
     from extended_tracker.config import from_flat, iter_leaves, to_flat, TrackerConfig
+    from extended_tracker.errors import ConfigError
 
     base = TrackerConfig()
     leaves = [(name, _edge_values(f, v)) for name, f, v in iter_leaves(base)]
@@ -267,12 +268,21 @@ def test_any_config_in_range_runs_without_nan_or_raising():
         for leaf, which in picks:
             name, values = leaves[leaf]
             flat[name] = values[which % len(values)]
-        cfg = from_flat(flat)
+        try:
+            cfg = from_flat(flat)
+        except ConfigError:
+            # every leaf is in its range; a combination the validator refuses (d_min
+            # above d_max) never reaches the filter (test_config checks the refusal)
+            assume(False)
         state = PipelineState.initial(cfg)
         with np.errstate(all='ignore'):
             for scan in data:
                 state, res = step(state, scan, cfg)
-                assert res.event in (None, 'unexplained_scan'), (res.event, res.error)
+                # a max_gap below the 0.1 s scan period restarts the filter every scan,
+                # as documented; nothing else may be an event here
+                gap_restart = res.event == 'time_gap' and cfg.timing.max_gap < 0.1
+                assert res.event in (None, 'unexplained_scan') or gap_restart, (
+                    res.event, res.error)
                 filt = state.filter
                 assert not np.isnan(filt.log_card).any()
                 for a in (filt.mixture.w, filt.mixture.alpha, filt.mixture.beta,
