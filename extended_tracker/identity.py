@@ -23,8 +23,10 @@ from .partition import find_root, union_min
 from .reduction import join_parts
 from .state import Estimates, FilterState, find_sorted, NO_LABELS
 
-# a thin contour piece (see group_segments): semi-minor axis at most this, semi-major at least
-SEGMENT_MAX_SEMI_MINOR = 0.15        # m
+# a thin contour piece (see group_segments): semi-minor axis at most this, semi-major at least.
+# A car's end piece often holds a stretch of its side by the corner as well, which
+# takes its semi-minor axis to 0.16-0.24 m (mixed_traffic)
+SEGMENT_MAX_SEMI_MINOR = 0.25        # m
 SEGMENT_MIN_SEMI_MAJOR = 0.5         # m
 
 

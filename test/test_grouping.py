@@ -59,7 +59,7 @@ def test_pieces_apart_moving_differently_or_not_thin_stay_apart():
     side = (3, (0.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0)
     for other in [(7, (0.0, 0.6), (0.0, 2.4), 0.005, (5.0, 0.0), 10.0),     # 0.6 m gap
                   (7, (0.0, 0.05), (0.0, 1.8), 0.005, (2.9, 0.0), 10.0),    # 2.1 m/s apart
-                  (7, (0.0, 0.05), (0.0, 1.8), 0.2, (5.0, 0.0), 10.0),      # 0.4 m thick
+                  (7, (0.0, 0.05), (0.0, 1.8), 0.25, (5.0, 0.0), 10.0),     # semi-minor 0.29 m
                   (7, (0.0, 0.05), (0.0, 0.6), 0.005, (5.0, 0.0), 10.0)]:   # 0.55 m long
         est = pieces([side, other])
         out, n = group_segments(est, np.array([5, 5]), gap=0.5, speed=2.0)
@@ -67,6 +67,19 @@ def test_pieces_apart_moving_differently_or_not_thin_stay_apart():
     # switched off
     est = pieces([side, (7, (0.0, 0.05), (0.0, 1.8), 0.005, (5.0, 0.0), 10.0)])
     assert group_segments(est, np.array([5, 5]), gap=0.0, speed=2.0)[1] == 0
+
+
+def test_a_corner_piece_with_some_of_the_side_is_grouped():
+    """The end piece the filter tracks often holds the car's end and a stretch of its side
+    next to the corner (in mixed_traffic, semi-axes 1.05-1.14 m by 0.16-0.24 m): thicker
+    than a bare segment, still a contour piece. Up to a semi-minor axis of 0.25 m it is
+    grouped; a piece of 0.29 m is not (previous test)."""
+    side = (3, (0.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0)
+    for half_thickness, grouped in ((0.2, True), (0.216, True), (0.22, False)):
+        # semi-minor axis 2 t / sqrt(3): 0.231, 0.249, 0.254 m
+        corner = (7, (0.0, 0.05), (0.0, 1.9), half_thickness, (5.0, 0.0), 10.0)
+        out, n = group_segments(pieces([side, corner]), np.array([9, 5]), gap=0.5, speed=2.0)
+        assert n == int(grouped), half_thickness
 
 
 def test_an_end_that_touches_the_side_inside_its_estimated_length_is_grouped():
