@@ -113,6 +113,8 @@ class TrackerNode(Node):
         (The offline tools refuse an unknown key outright; a parameter file's ``/**``
         section may hold other nodes' parameters, so the node runs on.)
         """
+        # rclpy keeps what it was given in Node._parameter_overrides (Jazzy has no public
+        # accessor); a release without it makes this check say nothing, not fail
         unknown = sorted(name for name in getattr(self, '_parameter_overrides', {})
                          if not self.has_parameter(name))
         if unknown:
