@@ -64,6 +64,27 @@ SCAN_TYPE = 'sensor_msgs/msg/LaserScan'
 TRACKS_TYPE = 'extended_tracker_msgs/msg/ExtendedObjectArray'
 MARKERS_TYPE = 'visualization_msgs/msg/MarkerArray'
 
+def scan_data(scan) -> dict:
+    """
+    Nested plain data of a LaserScan for :func:`build_message` (ROS 2 fields): a message
+    read from a ROS 1 or ROS 2 bag (a ROS 1 header's ``seq`` is left out) or the
+    simulator's scan (which has no time increment or intensities: 0 and none).
+    """
+    import numpy as np
+
+    stamp = scan.header.stamp
+    return {
+        'header': {'stamp': {'sec': stamp.sec, 'nanosec': stamp.nanosec},
+                   'frame_id': scan.header.frame_id},
+        'angle_min': scan.angle_min, 'angle_max': scan.angle_max,
+        'angle_increment': scan.angle_increment,
+        'time_increment': getattr(scan, 'time_increment', 0.0),
+        'scan_time': scan.scan_time, 'range_min': scan.range_min,
+        'range_max': scan.range_max, 'ranges': np.asarray(scan.ranges, np.float32),
+        'intensities': np.asarray(getattr(scan, 'intensities', ()), np.float32),
+    }
+
+
 _BASE_DEFAULT = {'bool': False, 'string': ''}
 _NUMPY_OF = {'bool': 'bool', 'int8': 'int8', 'uint8': 'uint8', 'byte': 'uint8',
              'char': 'uint8', 'int16': 'int16', 'uint16': 'uint16', 'int32': 'int32',

@@ -1,9 +1,11 @@
 """
 Bag replay: LaserScans from a bag through :func:`pipeline.step` into a new MCAP bag.
 
-The output holds ``/tracks`` (ExtendedObjectArray) and ``/tracks/markers`` (MarkerArray)
-stamped with the scan stamps, with the message definitions stored so ``ros2 bag play``
-on a Jazzy install replays it. It is written into a temporary folder beside the target
+The output holds the node's topics: ``/scan`` (the input scans as read, in ROS 2 form
+whatever the input bag's topic and ROS version), ``/tracks`` (ExtendedObjectArray) and
+``/tracks/markers`` (MarkerArray), stamped with the scan stamps, with the message
+definitions stored so ``ros2 bag play`` on a Jazzy install replays it (and the installed
+RViz view shows it as it shows the live node). It is written into a temporary folder beside the target
 and renamed into place only when complete: an interrupted replay leaves no bag.
 """
 
@@ -20,12 +22,14 @@ import time
 import numpy as np
 
 from .bagio import (
-    BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, TRACKS_TYPE,
+    BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, SCAN_TYPE,
+    scan_data, TRACKS_TYPE,
 )
 from .config import TrackerConfig
 from .messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
 from .pipeline import PipelineState, step
 
+SCAN_TOPIC = '/scan'
 TRACKS_TOPIC = '/tracks'
 MARKERS_TOPIC = '/tracks/markers'
 
@@ -134,6 +138,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     fov = None
     try:
         with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
             c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
             c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
             for k, (scan, res) in enumerate(replay_results(input_path, cfg, scan_topic)):
@@ -142,6 +147,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
                 tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
                 mdata, prev_ids = markers_data(res, cfg, prev_ids)
                 markers = build_message(store, MARKERS_TYPE, mdata)
+                writer.write(c_scan, res.stamp_ns, store.serialize_cdr(
+                    build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
                 writer.write(c_tracks, res.stamp_ns, store.serialize_cdr(tracks, TRACKS_TYPE))
                 writer.write(c_markers, res.stamp_ns,
                              store.serialize_cdr(markers, MARKERS_TYPE))

@@ -4,6 +4,7 @@ from pathlib import Path
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from extended_tracker.bagio import build_message, message_typestore, SCAN_TYPE
@@ -58,7 +59,7 @@ def read_output(path):
     out = {}
     with Reader(path) as r:
         conns = {c.topic: c for c in r.connections}
-        assert set(conns) == {'/tracks', '/tracks/markers'}
+        assert set(conns) == {'/scan', '/tracks', '/tracks/markers'}
         # the custom definition is stored, so a Jazzy `ros2 bag play` can replay it
         assert 'MSG: extended_tracker_msgs/ExtendedObject' in conns['/tracks'].msgdef.data
         for c, t, raw in r.messages():
@@ -80,13 +81,31 @@ def test_ros2_inputs_both_storages(tmp_path, storage):
     assert t == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
     assert len(msg.objects) >= 3
     assert (tmp_path / 'run.png').stat().st_size > 10_000
+    assert_scans_copied(out['/scan'], sim_scans())
+
+
+def assert_scans_copied(written, scans):
+    """The output's /scan holds every input scan as it was, at its stamp."""
+    assert len(written) == len(scans)
+    for (t, got), want in zip(written, scans):
+        assert t == want.header.stamp.sec * 10**9 + want.header.stamp.nanosec
+        assert (got.header.stamp.sec, got.header.stamp.nanosec, got.header.frame_id) == (
+            want.header.stamp.sec, want.header.stamp.nanosec, want.header.frame_id)
+        for name in ('angle_min', 'angle_max', 'angle_increment', 'scan_time', 'range_min',
+                     'range_max'):
+            assert getattr(got, name) == np.float32(getattr(want, name)), name
+        np.testing.assert_array_equal(got.ranges, np.asarray(want.ranges, np.float32))
+        assert got.time_increment == 0.0 and len(got.intensities) == 0
 
 
 def test_ros1_input(tmp_path):
     write_ros1(tmp_path / 'in.bag')
     s = replay(tmp_path / 'in.bag', tmp_path / 'out', CFG, progress=False)
     assert s.scans == 20 and s.topic == '/base_scan'
-    assert len(read_output(tmp_path / 'out')['/tracks']) == 20
+    out = read_output(tmp_path / 'out')
+    assert len(out['/tracks']) == 20
+    # a ROS 1 scan on /base_scan comes out as a ROS 2 scan on /scan, its seq left out
+    assert_scans_copied(out['/scan'], sim_scans())
 
 
 def test_bundled_bag_replays():

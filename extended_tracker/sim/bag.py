@@ -5,9 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
-from ..bagio import build_message, message_typestore, SCAN_TYPE
+from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data
 from ..errors import BagError
 from . import laser
 
@@ -18,19 +16,6 @@ SCENE_OF = {
     'walls': laser.walls_scene,
     'demo': laser.demo_scene,
 }
-
-
-def scan_data(scan) -> dict:
-    """Nested plain data of a :class:`ScanData` for ``build_message``."""
-    return {
-        'header': {'stamp': {'sec': scan.header.stamp.sec, 'nanosec': scan.header.stamp.nanosec},
-                   'frame_id': scan.header.frame_id},
-        'angle_min': scan.angle_min, 'angle_max': scan.angle_max,
-        'angle_increment': scan.angle_increment, 'time_increment': 0.0,
-        'scan_time': scan.scan_time, 'range_min': scan.range_min,
-        'range_max': scan.range_max, 'ranges': np.asarray(scan.ranges, np.float32),
-        'intensities': np.zeros(0, np.float32),
-    }
 
 
 def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '/scan') -> dict:
