@@ -19,11 +19,12 @@ from sensor_msgs.msg import LaserScan
 from extended_tracker_msgs.msg import ExtendedObjectArray
 from visualization_msgs.msg import MarkerArray
 
+from extended_tracker.bagio import scan_data
 from extended_tracker.config import from_dict, to_dict, to_flat, TrackerConfig
 from extended_tracker.configio import default_yaml, load_yaml
 from extended_tracker.ros.convert import fill, to_plain
 from extended_tracker.ros.node import parameter_descriptors, TrackerNode
-from extended_tracker.sim.bag import scan_data, write_sim_bag
+from extended_tracker.sim.bag import write_sim_bag
 from extended_tracker.sim.laser import simulate, tutorial_scene
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -7,11 +7,10 @@ import sys
 import numpy as np
 import pytest
 
-from extended_tracker.bagio import build_message, message_typestore, SCAN_TYPE
+from extended_tracker.bagio import build_message, message_typestore, SCAN_TYPE, scan_data
 from extended_tracker.config import from_dict
 from extended_tracker.errors import BagError
 from extended_tracker.replay import replay
-from extended_tracker.sim.bag import scan_data
 from extended_tracker.sim.laser import simulate, tutorial_scene
 
 ROOT = Path(__file__).resolve().parents[1]
