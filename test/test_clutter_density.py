@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.evaluate import SCENARIOS, truth_of, view_of
+from extended_tracker.evaluate import _merge, SCENARIOS, truth_of, view_of
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.scan import (
     BEAM_CLUTTER_MIN_RANGE, Header, scan_to_points, ScanData, Stamp,
@@ -100,7 +100,7 @@ def test_an_even_density_given_per_detection_is_the_default_update():
 
 def run_clutter_scene(density):
     factory, seconds, seed, overrides, _ = SCENARIOS['clutter']
-    cfg = from_dict({**overrides, 'model': {**overrides['model'], 'clutter_density': density}})
+    cfg = from_dict(_merge(overrides, {'model': {'clutter_density': density}}))
     state = PipelineState.initial(cfg)
     false = found = 0
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
