@@ -87,7 +87,8 @@ class StepResult:
     event : str or None
         One of :data:`EVENTS` when the scan was special.
     error : str or None
-        The reason of a malformed or unexplained scan.
+        What made the scan special, for the log: the reason of a malformed or unexplained
+        scan, the gap or the step back in time, with the figures.
     processing_time : float
         Seconds spent in :func:`step`.
 
@@ -199,21 +200,26 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         return state, _repeat(state, now, state.frame_id, 'foreign_frame',
                               f'frame {frame!r} is not the tracked frame {state.frame_id!r}',
                               t0)
-    event = None
+    event = error = None
     filt = state.filter
     background = state.background
     if state.last_stamp_ns is None:
         dt = cfg.timing.default_dt
     elif now == state.last_stamp_ns:
-        return state, _repeat(state, now, frame, 'repeated_stamp', None, t0)
+        return state, _repeat(state, now, frame, 'repeated_stamp',
+                              'the same stamp as the previous scan: not used again', t0)
     elif now < state.last_stamp_ns:
         event = 'time_backwards'
+        error = (f'stamp {(state.last_stamp_ns - now) * 1e-9:.3f} s before the previous '
+                 f'scan\'s (a bag that looped, or sim time not set?): tracks restarted')
         filt = _reset(filt, cfg)
         dt = cfg.timing.default_dt
     else:
         dt = (now - state.last_stamp_ns) * 1e-9
         if dt > cfg.timing.max_gap:
             event = 'time_gap'
+            error = (f'{dt:.3f} s since the previous scan, over timing.max_gap '
+                     f'({cfg.timing.max_gap:g} s): tracks restarted')
             filt = _reset(filt, cfg)
             dt = cfg.timing.default_dt
     diag = _diag_template()
@@ -285,11 +291,11 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
         clutter_log_density=clutter)
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
-    error = None
     if fdiag.unexplained:
         event = event or 'unexplained_scan'
-        error = (f'no partition of the {len(points)} returns is possible (more objects than '
-                 f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
+        why = (f'no partition of the {len(points)} returns is possible (more objects than '
+               f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
+        error = why if error is None else f'{error}; {why}'
     new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
                        frame_id=frame, last_estimates=estimates, moved=moved,
                        scans=state.scans + 1,

@@ -47,6 +47,7 @@ class ReplaySummary:
     median_ms: float = 0.0
     p99_ms: float = 0.0
     events: dict = field(default_factory=dict)
+    first_reasons: dict = field(default_factory=dict)   # event -> its first scan's reason
     topic: str = ''
     output: str = ''
     plot: str = ''
@@ -61,7 +62,7 @@ class ReplaySummary:
             f'objects per scan mean {self.mean_count:.2f}, max {self.max_count}',
             f'time per scan    median {self.median_ms:.2f} ms, p99 {self.p99_ms:.2f} ms',
             f'events           {ev}',
-        ]
+        ] + [f'  first {k}: {why}' for k, why in sorted(self.first_reasons.items())]
 
 
 class _Progress:
@@ -157,6 +158,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
                 summary.valid_detections += res.diagnostics.get('detections', 0)
                 if res.event:
                     summary.events[res.event] = summary.events.get(res.event, 0) + 1
+                    if res.error:
+                        summary.first_reasons.setdefault(res.event, res.error)
                 for lab, m in zip(res.estimates.label.tolist(), res.estimates.m[:, :2]):
                     ids.add(lab)
                     first_pos.setdefault(lab, m.copy())

@@ -84,6 +84,7 @@ def test_repeated_stamp_is_not_used_twice():
     s = scans(20)[-1]                                 # same stamp as the last one used
     new_state, res = step(state, s, CFG)
     assert res.event == 'repeated_stamp' and new_state is state
+    assert res.error == 'the same stamp as the previous scan: not used again'
     assert res.estimates.label.tolist() == state.last_estimates.label.tolist()
 
 
@@ -92,6 +93,7 @@ def test_time_backwards_resets_the_filter():
     first = scans(1)[0]
     new_state, res = step(state, first, CFG)
     assert res.event == 'time_backwards'
+    assert res.error.startswith('stamp 1.900 s before the previous scan')  # scan 20 to 1
     assert new_state.last_stamp_ns == first.header.stamp.sec * 10**9 + first.header.stamp.nanosec
     # the tracks were dropped; the objects seen again are new tracks (reported after
     # confirm_scans) whose ids continue after the old ones (never reused)
@@ -109,6 +111,25 @@ def test_gap_reinitialises_and_dt_is_never_negative():
     new_state, res = step(state, late, CFG)
     assert res.event == 'time_gap'
     assert new_state.filter.dt == pytest.approx(CFG.timing.default_dt)
+    # the log line says how long the gap was and what it was over
+    assert res.error == '5.000 s since the previous scan, over timing.max_gap (2 s): tracks restarted'
+
+
+def test_max_gap_below_the_scan_period_says_so_on_every_scan():
+    """timing.max_gap under the scan period (0.1 s here) restarts the filter on every
+    scan: nothing is ever tracked, and each scan's reason names both figures."""
+    cfg = from_dict({'background': {'enabled': False}, 'timing': {'max_gap': 0.05}})
+    state = PipelineState.initial(cfg)
+    events, errors, shown = [], set(), 0
+    for s in scans(15):
+        state, res = step(state, s, cfg)
+        events.append(res.event)
+        errors.add(res.error)
+        shown += len(res.estimates)
+    assert events == [None] + ['time_gap'] * 14 and shown == 0
+    errors.discard(None)
+    assert errors == {'0.100 s since the previous scan, over timing.max_gap (0.05 s): '
+                      'tracks restarted'}
 
 
 def test_a_time_gap_forgets_which_labels_moved():

@@ -181,6 +181,21 @@ def test_interrupted_replay_leaves_no_bag(tmp_path, monkeypatch):
     assert not list(tmp_path.glob('.out.partial*'))
 
 
+def test_summary_gives_the_first_reason_of_each_event(tmp_path):
+    """timing.max_gap under the bag's scan period: every scan but the first restarts
+    the filter, and the summary says why in figures, once."""
+    write_ros2(tmp_path / 'in')
+    cfg = from_dict({'background': {'enabled': False}, 'timing': {'max_gap': 0.05}})
+    s = replay(tmp_path / 'in', tmp_path / 'out', cfg, progress=False)
+    assert s.events == {'time_gap': 19} and s.distinct_ids == 0
+    assert s.lines()[-2:] == [
+        'events           time_gap 19',
+        '  first time_gap: 0.100 s since the previous scan, over timing.max_gap (0.05 s): '
+        'tracks restarted']
+    clean = replay(tmp_path / 'in', tmp_path / 'out2', CFG, progress=False)
+    assert clean.lines()[-1] == 'events           none' and clean.distinct_ids >= 1
+
+
 def test_cli_replay_prints_a_summary(tmp_path):
     write_ros2(tmp_path / 'in', seconds=1.0)
     exe = Path(sys.executable).with_name('extended-tracker')
