@@ -61,11 +61,10 @@ def relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Track
     at, known = find_sorted(old.shown, est.label)
     d = est.m[:, :2] - old.shown_pos[at]
     t = old.shown_elapsed[at] + new.dt
-    jumped = known & (np.sqrt(np.add.reduce(d * d, axis=1)) > _speed_reach(ex, t))
+    jumped = known & (_norm(d, 1) > _speed_reach(ex, t))
     if ex.max_accel > 0:
         d -= old.shown_vel[at] * t[:, None]          # from where its velocity carried it
-        jumped |= known & (np.sqrt(np.add.reduce(d * d, axis=1))
-                           > 0.5 * ex.max_accel * t * t + ex.jump_slack)
+        jumped |= known & (_norm(d, 1) > 0.5 * ex.max_accel * t * t + ex.jump_slack)
     if not np.logical_or.reduce(jumped):
         return new, est, 0
     bad = est.label[jumped]
@@ -82,6 +81,12 @@ def relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Track
     return (evolve(new, mixture=evolve(mix, label=label),
                    next_label=new.next_label + len(bad)),
             evolve(est, label=est_label).take(order), len(bad))
+
+
+def _norm(d: np.ndarray, axis: int) -> np.ndarray:
+    """Euclidean length along ``axis`` (the sum ``np.linalg.norm`` computes, without its
+    dispatch cost on these small arrays)."""
+    return np.sqrt(np.add.reduce(d * d, axis=axis))
 
 
 def _speed_reach(ex, t):
@@ -143,12 +148,12 @@ def hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerCo
     elapsed = old.shown_elapsed[lost] + dt
     pos, last = est.m[young, None, :2], old.shown_pos[None, lost]
     d = pos - (last + old.shown_vel[None, lost] * elapsed[None, :, None])
-    dist = np.sqrt(np.add.reduce(d * d, axis=2))       # (young, lost)
+    dist = _norm(d, 2)                                 # (young, lost)
     # and never farther than the speed limit lets an id move (see relabel_jumps)
     d = pos - last
     reach = _speed_reach(ex, elapsed)
     near = ((dist <= ex.handover_distance)
-            & (np.sqrt(np.add.reduce(d * d, axis=2)) <= reach[None, :])
+            & (_norm(d, 2) <= reach[None, :])
             & (est.label[young][:, None] > old.shown[lost][None, :])).nonzero()
     if not len(near[0]):
         return new, est, old, 0
@@ -191,7 +196,7 @@ def record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filter
     if len(i) < len(est):                          # the semi-major axis of the new ones
         size[~again] = est.axes()[0][~again]
     d = est.m[:, :2] - origin
-    travel = np.sqrt(np.add.reduce(d * d, axis=1))     # as np.linalg.norm(d, axis=1) does
+    travel = _norm(d, 1)
     # only where returns placed it: a coasting label drifts with its predicted velocity
     travel[est.num_detections <= 0] = 0.0
     travel[again] = np.maximum(travel[again], old.reported_travel[i])
@@ -378,10 +383,9 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
     rel = ends[:, None, :] - centre[None, :, :]                          # (2s, s, 2)
     t = np.clip(np.add.reduce(rel * u[None], axis=2), -half[None], half[None])
     off = rel - t[:, :, None] * u[None]
-    d = np.sqrt(np.add.reduce(off * off, axis=2)).reshape(2, s, s).min(axis=0)
+    d = _norm(off, 2).reshape(2, s, s).min(axis=0)
     d = np.minimum(d, d.T)
-    dv = est.m[seg, None, 2:] - est.m[None, seg, 2:]
-    dv = np.sqrt(np.add.reduce(dv * dv, axis=2))
+    dv = _norm(est.m[seg, None, 2:] - est.m[None, seg, 2:], 2)
     near = (d <= gap) & (dv <= speed)
     np.fill_diagonal(near, False)
     if not near.any():
