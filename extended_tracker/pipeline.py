@@ -16,7 +16,9 @@ Time handling (stamps from the scan header):
   ones so an id is never reused) and the scan processed as a first scan; event
   ``time_backwards``;
 - a gap longer than ``timing.max_gap``: the filter is re-initialised the same way; event
-  ``time_gap``.
+  ``time_gap``;
+- a zero stamp (a driver that does not set it), when the caller says when the scan
+  arrived: that time is used; event ``zero_stamp``.
 
 Malformed scans raise nothing out of :func:`step`: they give a result with the previous
 estimates and event ``malformed_scan``, the reason in ``result.error``. The pipeline locks
@@ -45,7 +47,7 @@ from .state import Estimates, FilterState, find_sorted, StepDiagnostics
 from .tracker import gate_threshold, predict_state, sensor_noise, update_state
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
-          'unexplained_scan')
+          'unexplained_scan', 'zero_stamp')
 
 
 @dataclass(frozen=True)
@@ -162,9 +164,15 @@ def reset(state: PipelineState, cfg: TrackerConfig) -> PipelineState:
     return PipelineState(_reset(state.filter, cfg), last_stamp_ns=state.last_stamp_ns)
 
 
-def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState, StepResult]:
+def step(state: PipelineState, scan, cfg: TrackerConfig,
+         arrival_ns: int | None = None) -> tuple[PipelineState, StepResult]:
     """
     Carry one LaserScan-like message through the whole chain.
+
+    ``arrival_ns``, when given, is when the scan arrived (the node's clock, a bag's record
+    time): a scan whose header stamp is zero (a driver that does not set it) is taken at
+    that time instead, event ``zero_stamp``. Without it every scan after the first would
+    repeat the first one's stamp, and none would be used.
 
     Returns the new state and a :class:`StepResult`; never raises on bad sensor data.
     ``result.diagnostics`` holds: ``beams``, ``masked_<kind>`` for each invalid-beam kind,
@@ -188,6 +196,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     except (AttributeError, TypeError, ValueError) as err:
         return state, _repeat(state, state.last_stamp_ns or 0, state.frame_id or '',
                               'malformed_scan', f'unreadable header: {err}', t0)
+    zero_stamp = now == 0 and arrival_ns is not None
+    if zero_stamp:
+        now = int(arrival_ns)
     try:
         sp = scan_to_points(scan, cfg.scan.min_range, cfg.scan.max_range,
                             cfg.scan.range_max_inclusive)
@@ -222,6 +233,10 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
                      f'({cfg.timing.max_gap:g} s): tracks restarted')
             filt = _reset(filt, cfg)
             dt = cfg.timing.default_dt
+    if zero_stamp and event is None:
+        event = 'zero_stamp'
+        error = ('the header stamp is zero (a driver that does not set it?): the scan is '
+                 'taken at its arrival time')
     diag = _diag_template()
     diag['beams'] = len(sp.angles)
     for k, v in sp.masked.items():
@@ -292,7 +307,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig) -> tuple[PipelineState,
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
     if fdiag.unexplained:
-        event = event or 'unexplained_scan'
+        # a restart outranks it; a zero stamp (every scan, from a driver) does not
+        event = 'unexplained_scan' if event in (None, 'zero_stamp') else event
         why = (f'no partition of the {len(points)} returns is possible (more objects than '
                f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
         error = why if error is None else f'{error}; {why}'

@@ -94,13 +94,14 @@ def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None
     reader, conns = open_scans(input_path, scan_topic)
     try:
         state = PipelineState.initial(cfg)
-        for conn, _, raw in reader.messages(connections=conns):
+        for conn, record_ns, raw in reader.messages(connections=conns):
             try:
                 scan = reader.deserialize(raw, conn.msgtype)
             except Exception as err:  # a corrupt record: say which, stop cleanly
                 msg = f'cannot decode a LaserScan on {conn.topic}: {err}'
                 raise BagError(msg) from err
-            state, result = step(state, scan, cfg)
+            # the record time stands in for a zero header stamp (event zero_stamp)
+            state, result = step(state, scan, cfg, arrival_ns=record_ns)
             yield scan, result
     finally:
         reader.close()

@@ -268,6 +268,25 @@ def test_robustness_every_case_counted_never_a_crash(harness):
     assert len(harness.tracks) == harness.node.scans == 17      # 10 good + 7 special
 
 
+def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
+    """A driver that leaves header.stamp zero: each scan is taken (and answered) at the
+    node's clock when it arrived, counted as zero_stamp; none is dropped as a repeat."""
+    data = simulate(tutorial_scene(), 0.5, seed=0)
+    stamps = []
+    for scan, _ in data:
+        msg = ros_scan(scan)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+        before = time.time_ns()
+        out = harness.send(msg)
+        t = out.header.stamp.sec * 10**9 + out.header.stamp.nanosec
+        assert before <= t <= time.time_ns()
+        stamps.append(t)
+    assert stamps == sorted(set(stamps))
+    c = harness.node.counts
+    assert c == {'zero_stamp': 5}
+    assert len(harness.tracks) == harness.node.scans == 5
+
+
 def test_a_scan_no_partition_explains_is_published_and_counted(harness):
     """
     model.n_max set to 1 at run time with three people in view: no partition of a scan

@@ -132,6 +132,29 @@ def test_max_gap_below_the_scan_period_says_so_on_every_scan():
                       'tracks restarted'}
 
 
+def test_a_zero_stamp_takes_the_arrival_time():
+    """A driver that leaves the header stamp zero: with the arrival times the tracks are
+    those of the stamped scans, each scan says zero_stamp; without them only the first
+    scan is used (every later one repeats its stamp)."""
+    stamped, zeroed, blind = (PipelineState.initial(CFG) for _ in range(3))
+    for k, s in enumerate(scans(25)):
+        t = s.header.stamp.sec * 10**9 + s.header.stamp.nanosec
+        z = with_stamp(s, 0)
+        stamped, want = step(stamped, s, CFG)
+        zeroed, got = step(zeroed, z, CFG, arrival_ns=t)
+        blind, res = step(blind, z, CFG)
+        assert got.event == 'zero_stamp' and 'arrival time' in got.error
+        assert got.stamp_ns == want.stamp_ns == t
+        assert got.estimates.label.tolist() == want.estimates.label.tolist()
+        np.testing.assert_array_equal(got.estimates.m, want.estimates.m)
+        assert res.event == (None if k == 0 else 'repeated_stamp')
+    assert len(want.estimates) >= 3 and blind.scans == 1
+    # a stamped scan ignores the arrival time
+    first = scans(1)[0]
+    _, res = step(PipelineState.initial(CFG), first, CFG, arrival_ns=123)
+    assert res.event is None and res.stamp_ns == first.header.stamp.sec * 10**9
+
+
 def test_a_time_gap_forgets_which_labels_moved():
     """The labels seen to move (they protect their returns) go with the tracks."""
     state = warm_state(30, BG_CFG)

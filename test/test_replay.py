@@ -21,7 +21,7 @@ def sim_scans(seconds=2.0, seed=0):
     return [s for s, _ in simulate(tutorial_scene(), seconds, seed=seed)]
 
 
-def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0):
+def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0, zero_stamps=False):
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = message_typestore()
@@ -30,8 +30,10 @@ def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0):
         conns = [w.add_connection(t, SCAN_TYPE, typestore=store) for t in topics]
         for scan in sim_scans(seconds):
             ns = scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
-            raw = store.serialize_cdr(build_message(store, SCAN_TYPE, scan_data(scan)),
-                                      SCAN_TYPE)
+            data = scan_data(scan)
+            if zero_stamps:                      # a driver that leaves the stamp unset
+                data['header']['stamp'] = {'sec': 0, 'nanosec': 0}
+            raw = store.serialize_cdr(build_message(store, SCAN_TYPE, data), SCAN_TYPE)
             for c in conns:
                 w.write(c, ns, raw)
 
@@ -168,11 +170,11 @@ def test_interrupted_replay_leaves_no_bag(tmp_path, monkeypatch):
     real_step = rp.step
     calls = {'n': 0}
 
-    def interrupted(state, scan, cfg):
+    def interrupted(state, scan, cfg, **kwargs):
         calls['n'] += 1
         if calls['n'] == 7:
             raise KeyboardInterrupt
-        return real_step(state, scan, cfg)
+        return real_step(state, scan, cfg, **kwargs)
 
     monkeypatch.setattr(rp, 'step', interrupted)
     with pytest.raises(KeyboardInterrupt):
@@ -194,6 +196,19 @@ def test_summary_gives_the_first_reason_of_each_event(tmp_path):
         'tracks restarted']
     clean = replay(tmp_path / 'in', tmp_path / 'out2', CFG, progress=False)
     assert clean.lines()[-1] == 'events           none' and clean.distinct_ids >= 1
+
+
+def test_zero_header_stamps_take_the_record_time(tmp_path):
+    write_ros2(tmp_path / 'in', zero_stamps=True)
+    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    assert s.events == {'zero_stamp': 20} and s.distinct_ids >= 3
+    assert s.first_reasons['zero_stamp'].startswith('the header stamp is zero')
+    out = read_output(tmp_path / 'out')
+    t, msg = out['/tracks'][-1]
+    assert t == msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec == 1_700_000_001_900_000_000
+    assert len(msg.objects) >= 3
+    # the scans are written as read
+    assert out['/scan'][-1][1].header.stamp.sec == 0
 
 
 def test_cli_replay_prints_a_summary(tmp_path):

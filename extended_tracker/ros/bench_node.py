@@ -48,9 +48,9 @@ def node_overhead(scans: int = 200, marker_listener: bool = False) -> dict:
 
         real_step = node_mod.step
 
-        def timed_step(state, scan, cfg):
+        def timed_step(*args, **kwargs):
             t0 = time.perf_counter()
-            out = real_step(state, scan, cfg)
+            out = real_step(*args, **kwargs)
             inner.append(time.perf_counter() - t0)
             return out
 

@@ -144,7 +144,9 @@ class TrackerNode(Node):
     # --- the callback ---
     def on_scan(self, msg: LaserScan) -> None:
         try:
-            self.state, result = step(self.state, msg, self.cfg)
+            # the arrival time stands in for a zero header stamp (event zero_stamp)
+            self.state, result = step(self.state, msg, self.cfg,
+                                      arrival_ns=self.get_clock().now().nanoseconds)
         except Exception as err:  # a bug must not take the node down; say it loudly
             self._count('internal_error', f'pipeline failed on a scan: {err!r}', error=True)
             return
