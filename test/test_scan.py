@@ -73,6 +73,27 @@ def test_malformed_scans_raise_clear_errors(kwargs, fragment):
         scan_to_points(make_scan([1.0, 2.0, 3.0], **kwargs))
 
 
+def test_angle_max_one_or_two_beams_off_is_taken():
+    """angle_max n rather than n - 1 increments out, angles at beam edges, or both; and
+    the float32 geometry of the Freiburg SICK recording's /ROBOTLASER1 (361 beams where
+    the angles imply 359.985). The beams are where angle_min and the increment put them.
+    Three beams off is a truncated scan, refused."""
+    inc = 0.01
+    for n, span in ((100, 99), (100, 100), (100, 101), (100, 98), (100, 97.02)):
+        sp = scan_to_points(make_scan(np.ones(n), angle_min=0.0, inc=inc,
+                                      angle_max=span * inc))
+        np.testing.assert_allclose(sp.angles, inc * np.arange(n))
+    f32 = np.float32
+    sp = scan_to_points(make_scan(np.ones(361), angle_min=float(f32(-1.5664324760437012)),
+                                  inc=float(f32(0.008727000094950199)),
+                                  angle_max=float(f32(1.5664335489273071))))
+    assert len(sp.points) == 361
+    for span in (96, 102):
+        with pytest.raises(ScanError, match='disagrees'):
+            scan_to_points(make_scan(np.ones(100), angle_min=0.0, inc=inc,
+                                     angle_max=span * inc))
+
+
 def test_more_than_a_full_turn_is_refused():
     with pytest.raises(ScanError, match='full turn'):
         scan_to_points(make_scan(np.ones(100), angle_min=0.0, inc=0.1, angle_max=9.9))

@@ -55,6 +55,10 @@ class ScanData:
     intensities: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
 
 
+# how many beams len(ranges) may differ from what the angles imply (see scan_to_points)
+MAX_BEAM_MISMATCH = 2.01
+
+
 def stamp_ns(scan) -> int:
     """Header stamp in integer nanoseconds."""
     st = scan.header.stamp
@@ -190,7 +194,7 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
         On a malformed scan: non-finite or zero angle increment, non-finite angles or range
         limits, ``range_max <= range_min``, a field of view beyond a full turn, or
         ``len(ranges)`` disagreeing with ``angle_min``/``angle_max``/``angle_increment`` by
-        more than one beam.
+        more than two beams (a truncated or garbled scan).
 
     Notes
     -----
@@ -219,7 +223,12 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
     if a_max is not None and n:
         a1 = _finite('angle_max', a_max)
         expected = (a1 - a0) / inc + 1.0
-        if expected < 0.5 or abs(expected - n) > 1.01:
+        # Drivers differ by a beam in two conventions: angle_max as n rather than n - 1
+        # increments from angle_min, and angles at beam edges rather than centres. The beam
+        # angles are angle_min + k * angle_increment whatever angle_max says, so up to two
+        # beams (and float32 rounding) are taken; the Freiburg SICK recording's
+        # /ROBOTLASER1 is 1.015 beams off, and all of its scans were refused.
+        if expected < 0.5 or abs(expected - n) > MAX_BEAM_MISMATCH:
             raise ScanError(f'len(ranges) = {n} disagrees with angle_min={a0:.6g}, '
                             f'angle_max={a1:.6g}, angle_increment={inc:.6g} '
                             f'(expected {expected:.1f} beams)')
