@@ -1,6 +1,7 @@
 """
-The node, launch-free: node under test and a probe node in one process, on a private
-Context with a SingleThreadedExecutor and bounded spins (DDS on loopback, see conftest).
+The node, launch-free, through the package's own harness (``extended_tracker.ros.testing``):
+node under test and a probe node in one process, on a private Context with a
+SingleThreadedExecutor and bounded spins (DDS on loopback, see conftest).
 """
 
 import copy
@@ -11,91 +12,24 @@ import numpy as np
 import pytest
 import yaml
 
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from sensor_msgs.msg import LaserScan
-from extended_tracker_msgs.msg import ExtendedObjectArray
-from visualization_msgs.msg import MarkerArray
 
-from extended_tracker.bagio import scan_data
 from extended_tracker.config import from_dict, to_dict, to_flat, TrackerConfig
 from extended_tracker.configio import default_yaml, load_yaml
-from extended_tracker.ros.convert import fill, to_plain
-from extended_tracker.ros.node import parameter_descriptors, TrackerNode
+from extended_tracker.ros.convert import to_plain
+from extended_tracker.ros.node import parameter_descriptors
+from extended_tracker.ros.testing import laser_scan as ros_scan, NodeHarness
 from extended_tracker.sim.bag import write_sim_bag
 from extended_tracker.sim.laser import simulate, tutorial_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 YAML = ROOT / 'config' / 'tracker.yaml'
-SPIN_LIMIT_S = 5.0          # per expected message; loopback delivery takes milliseconds
-
-
-class Harness:
-    """A TrackerNode and a probe node that publishes scans and records the outputs."""
-
-    def __init__(self, args=None, overrides=None, markers=True):
-        self.ctx = Context()
-        rclpy.init(context=self.ctx, args=args)
-        kw = {'context': self.ctx}
-        if overrides:
-            kw['parameter_overrides'] = overrides
-        self.node = TrackerNode(**kw)
-        self.probe = rclpy.create_node('probe', context=self.ctx)
-        self.tracks, self.markers = [], []
-        self.probe.create_subscription(ExtendedObjectArray, 'tracks', self.tracks.append, 50)
-        from rclpy.qos import qos_profile_sensor_data
-        self.pub = self.probe.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
-        self.ex = SingleThreadedExecutor(context=self.ctx)
-        self.ex.add_node(self.node)
-        self.ex.add_node(self.probe)
-        self.expect_markers = False
-        self._discover(lambda: self.pub.get_subscription_count() >= 1)
-        if markers:
-            self.watch_markers()
-
-    def _discover(self, done):
-        deadline = time.monotonic() + SPIN_LIMIT_S
-        while not done() and time.monotonic() < deadline:
-            self.ex.spin_once(timeout_sec=0.01)
-
-    def watch_markers(self):
-        """Subscribe the probe to the markers (the node builds them only then), wait until
-        the node sees the subscription, and expect markers with every reply from now on."""
-        self.probe.create_subscription(MarkerArray, 'tracks/markers', self.markers.append, 50)
-        self._discover(lambda: self.node.pub_markers.get_subscription_count() >= 1)
-        self.expect_markers = True
-
-    def send(self, msg, expect_reply=True):
-        n, n_markers = len(self.tracks), len(self.markers)
-        self.pub.publish(msg)
-        deadline = time.monotonic() + SPIN_LIMIT_S
-        while time.monotonic() < deadline:
-            self.ex.spin_once(timeout_sec=0.01)
-            if (expect_reply and len(self.tracks) > n
-                    and (not self.expect_markers or len(self.markers) > n_markers)):
-                return self.tracks[-1]
-            if not expect_reply and self.node.scans >= 0 and time.monotonic() > deadline - 4.5:
-                return None
-        if expect_reply:
-            raise AssertionError('no reply within the spin limit')
-        return None
-
-    def close(self):
-        self.ex.shutdown()
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
-
-
-def ros_scan(scan):
-    return fill(LaserScan(), scan_data(scan))
+NO_BACKGROUND = {'background.enabled': False}
 
 
 @pytest.fixture
 def harness():
-    h = Harness(overrides=[Parameter('background.enabled', value=False)])
+    h = NodeHarness(NO_BACKGROUND)
     yield h
     h.close()
 
@@ -167,7 +101,7 @@ def test_markers_are_built_only_while_someone_listens(marker_builds):
     markers come with every scan, and ids drawn before the gap that are gone now are
     deleted."""
     built = marker_builds
-    h = Harness(overrides=[Parameter('background.enabled', value=False)], markers=False)
+    h = NodeHarness(NO_BACKGROUND, markers=False)
     try:
         data = simulate(tutorial_scene(), 4.0, seed=1)
         for scan, _ in data[:20]:
@@ -217,9 +151,9 @@ def test_reset_service_drops_the_tracks_and_their_markers(harness):
     before = {o.id for o in harness.tracks[-1].objects}
     assert before
     client = harness.probe.create_client(Trigger, '/extended_tracker/reset')
-    harness._discover(client.service_is_ready)
+    harness.spin_until(client.service_is_ready)
     future = client.call_async(Trigger.Request())
-    harness._discover(future.done)
+    harness.spin_until(future.done)
     assert future.done() and future.result().success
     first_new = harness.node.state.filter.next_label
     assert first_new > max(before)
@@ -308,7 +242,7 @@ def test_a_scan_no_partition_explains_is_published_and_counted(harness):
 
 
 def test_parameters_from_the_yaml_file_and_descriptors():
-    h = Harness(args=['--ros-args', '--params-file', str(YAML)])
+    h = NodeHarness(args=['--ros-args', '--params-file', str(YAML)])
     try:
         assert h.node.cfg == TrackerConfig()
         names = {p for p in h.node._parameters if '.' in p}
@@ -326,7 +260,7 @@ def test_changed_yaml_is_loaded(tmp_path):
     data['/**']['ros__parameters']['partition']['d_max'] = 1.2
     path = tmp_path / 'p.yaml'
     path.write_text(yaml.safe_dump(data))
-    h = Harness(args=['--ros-args', '--params-file', str(path)])
+    h = NodeHarness(args=['--ros-args', '--params-file', str(path)])
     try:
         assert h.node.cfg.model.mode == 'phd' and h.node.cfg.partition.d_max == 1.2
     finally:
@@ -348,9 +282,8 @@ def test_unknown_parameters_are_named_once_with_the_nearest_known_one():
     """rclpy ignores parameters a node never declares: a misspelt one in a parameter file
     would leave its default in force. The node names them once at start-up (counted in
     its diagnostics) and runs on with the rest."""
-    h = Harness(args=['--ros-args', '-p', 'model.clutter_rte:=2.0'],
-                overrides=[Parameter('birth.position_std', value=0.5),
-                           Parameter('background.enabled', value=False)])
+    h = NodeHarness({'birth.position_std': 0.5, 'background.enabled': False},
+                    args=['--ros-args', '-p', 'model.clutter_rte:=2.0'])
     try:
         assert h.node.unknown_parameters == ['birth.position_std', 'model.clutter_rte']
         assert h.node.counts == {'unknown_parameter': 1}
@@ -359,17 +292,11 @@ def test_unknown_parameters_are_named_once_with_the_nearest_known_one():
         assert reply is not None
     finally:
         h.close()
-    h = Harness(overrides=[Parameter('background.enabled', value=False)])
+    h = NodeHarness(NO_BACKGROUND)
     try:
         assert h.node.unknown_parameters == [] and h.node.counts == {}
     finally:
         h.close()
-
-
-def test_invalid_value_at_start_up_is_refused():
-    with pytest.raises(Exception, match='model.mode'):
-        Harness(overrides=[Parameter('model.mode', value='kalman')])
-    rclpy.try_shutdown()
 
 
 def test_yaml_descriptors_and_dataclass_agree():
@@ -398,7 +325,7 @@ def test_node_and_replay_publish_the_same(tmp_path):
     with Reader(tmp_path / 'out') as reader:
         for conn, _, raw in reader.messages():
             from_bag[conn.topic].append(to_plain(store.deserialize_cdr(raw, conn.msgtype)))
-    h = Harness(overrides=[Parameter('background.enabled', value=False)])
+    h = NodeHarness(NO_BACKGROUND)
     try:
         for scan, _ in simulate(tutorial_scene(), 3.0, seed=3):
             h.send(ros_scan(scan))
@@ -474,3 +401,37 @@ def test_node_overhead_bench_with_and_without_a_marker_listener(marker_builds):
         r = node_overhead(scans=25, marker_listener=listener)
         assert r['callback_median_ms'] > r['step_median_ms'] > 0
         assert len(marker_builds) == (25 if listener else 0)
+
+
+def test_the_readme_harness_example_runs(capsys):
+    """The README's launch-free example, as printed there, against the installed node."""
+    text = (ROOT / 'README.md').read_text()
+    block = text.split('<!-- harness-example:begin -->')[1].split('<!-- harness-example:end -->')[0]
+    code = block.split('```python\n')[1].split('```')[0]
+    exec(compile(code, 'README.md harness example', 'exec'), {})
+    first, second = capsys.readouterr().out.splitlines()
+    count, ids = first.split(' objects, ids ')
+    assert int(count) >= 3 and len(eval(ids)) == int(count)
+    assert second == 'events: none'
+
+
+def test_invalid_value_at_start_up_is_refused_and_leaves_no_context(monkeypatch):
+    """An invalid parameter: the harness raises what the node raised, and shuts down the
+    context it made for it."""
+    import rclpy.context
+    import extended_tracker.ros.testing as testing
+
+    made = []
+
+    class Recorded(rclpy.context.Context):
+        def __init__(self):
+            super().__init__()
+            made.append(self)
+
+    monkeypatch.setattr(testing, 'Context', Recorded)
+    with pytest.raises(Exception, match='model.mode'):
+        NodeHarness({'model.mode': 'kalman'})
+    assert len(made) == 1 and not made[0].ok()
+    with NodeHarness(NO_BACKGROUND, markers=False) as h:
+        assert made[1].ok() and h.send(ros_scan(simulate(tutorial_scene(), 0.1, seed=1)[0][0]))
+    assert not made[1].ok()
