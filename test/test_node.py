@@ -202,6 +202,40 @@ def test_robustness_every_case_counted_never_a_crash(harness):
     assert len(harness.tracks) == harness.node.scans == 17      # 10 good + 7 special
 
 
+def test_diagnostics_give_each_scan_its_figures_and_the_event_counts(harness):
+    """One DiagnosticArray per scan, with the scan's stamp and frame: OK and 'ok' for a
+    plain scan, WARN and the event's name for a special one; the per-scan figures, and
+    the running count of each event."""
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    data = simulate(tutorial_scene(), 1.5, seed=0)
+    for scan, _ in data[:12]:
+        reply = harness.send(ros_scan(scan))
+    d = harness.diagnostics[-1]
+    assert d.header == reply.header and len(harness.diagnostics) == 12
+    st = d.status[0]
+    values = {kv.key: kv.value for kv in st.values}
+    assert st.level == DiagnosticStatus.OK and st.message == 'ok'
+    assert st.name == 'extended_tracker: tracker' and st.hardware_id == 'laser'
+    assert int(values['objects']) == len(reply.objects) >= 2
+    assert int(values['scans']) == 12 and int(values['beams']) == 361
+    assert int(values['detections']) == int(np.isfinite(data[11][0].ranges).sum())
+    assert float(values['processing_time_ms']) > 0
+    assert not [k for k in values if k.startswith('count_')]
+    bad = ros_scan(data[12][0])
+    bad.angle_increment = 0.0
+    for _ in range(2):
+        harness.send(bad)
+    st = harness.diagnostics[-1].status[0]
+    values = {kv.key: kv.value for kv in st.values}
+    assert st.level == DiagnosticStatus.WARN and st.message == 'malformed_scan'
+    assert values['count_malformed_scan'] == '2' and values['scans'] == '14'
+    harness.send(ros_scan(data[13][0]))
+    st = harness.diagnostics[-1].status[0]
+    assert st.level == DiagnosticStatus.OK
+    assert {kv.key: kv.value for kv in st.values}['count_malformed_scan'] == '2'
+
+
 def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
     """A driver that leaves header.stamp zero: each scan is taken (and answered) at the
     node's clock when it arrived, counted as zero_stamp; none is dropped as a repeat."""

@@ -48,8 +48,9 @@ def laser_scan(scan):
 
 class NodeHarness:
     """
-    A TrackerNode and a probe that publishes scans on ``scan`` and records ``tracks``
-    (and, with ``markers``, ``tracks/markers``) in :attr:`tracks` and :attr:`markers`.
+    A TrackerNode and a probe that publishes scans on ``scan`` and records ``tracks``,
+    ``tracks/diagnostics`` (and, with ``markers``, ``tracks/markers``) in
+    :attr:`tracks`, :attr:`diagnostics` and :attr:`markers`.
 
     Parameters
     ----------
@@ -71,6 +72,7 @@ class NodeHarness:
 
     def __init__(self, parameters: dict | None = None, args=None, markers: bool = True,
                  spin_limit: float = SPIN_LIMIT_S):
+        from diagnostic_msgs.msg import DiagnosticArray
         from extended_tracker_msgs.msg import ExtendedObjectArray
         from sensor_msgs.msg import LaserScan
 
@@ -85,14 +87,17 @@ class NodeHarness:
             rclpy.try_shutdown(context=self.ctx)
             raise
         self.probe = rclpy.create_node('probe', context=self.ctx)
-        self.tracks, self.markers = [], []
+        self.tracks, self.markers, self.diagnostics = [], [], []
         self.probe.create_subscription(ExtendedObjectArray, 'tracks', self.tracks.append, 50)
+        self.probe.create_subscription(DiagnosticArray, 'tracks/diagnostics',
+                                       self.diagnostics.append, 50)
         self.pub = self.probe.create_publisher(LaserScan, 'scan', qos_profile_sensor_data)
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self.executor.add_node(self.probe)
         self.expect_markers = False
-        self.spin_until(lambda: self.pub.get_subscription_count() >= 1)
+        self.spin_until(lambda: self.pub.get_subscription_count() >= 1
+                        and self.node.pub_diag.get_subscription_count() >= 1)
         if markers:
             self.watch_markers()
 
@@ -114,12 +119,12 @@ class NodeHarness:
         self.expect_markers = True
 
     def send(self, scan):
-        """Publish one scan and return the node's ``tracks`` reply to it (its markers, when
-        watched, are in :attr:`markers` then)."""
-        n, n_markers = len(self.tracks), len(self.markers)
+        """Publish one scan and return the node's ``tracks`` reply to it (its diagnostics
+        and, when watched, its markers are in :attr:`diagnostics` and :attr:`markers`)."""
+        n, n_diag, n_markers = len(self.tracks), len(self.diagnostics), len(self.markers)
         self.pub.publish(laser_scan(scan))
-        if not self.spin_until(lambda: len(self.tracks) > n and (
-                not self.expect_markers or len(self.markers) > n_markers)):
+        if not self.spin_until(lambda: len(self.tracks) > n and len(self.diagnostics) > n_diag
+                               and (not self.expect_markers or len(self.markers) > n_markers)):
             raise AssertionError(f'no reply from the node within {self.spin_limit} s')
         return self.tracks[-1]
 
