@@ -150,6 +150,24 @@ def _repeat(state, scan_stamp, frame, event, error, t0, diag=None):
                       time.perf_counter() - t0)
 
 
+def held(state: PipelineState, scan, event: str, error: str,
+         arrival_ns: int | None = None) -> StepResult:
+    """
+    The answer to a scan the caller could not carry through :func:`step` (the node, when
+    the pipeline itself fails): the previous estimates, with the scan's stamp (the
+    arrival time for a zero one, the last stamp for an unreadable one) in the tracked
+    frame, so the scan still gets its publication.
+    """
+    try:
+        now = stamp_ns(scan)
+        frame = frame_of(scan)
+    except (AttributeError, TypeError, ValueError):
+        now, frame = state.last_stamp_ns or 0, ''
+    if now == 0 and arrival_ns is not None:
+        now = int(arrival_ns)
+    return _repeat(state, now, state.frame_id or frame, event, error, time.perf_counter())
+
+
 def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
     """A fresh filter whose labels continue after the old ones (ids are never reused)."""
     return evolve(FilterState.initial(cfg), next_label=filt.next_label)
@@ -323,4 +341,4 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     return new_state, result
 
 
-__all__ = ['PipelineState', 'StepResult', 'step', 'reset', 'EVENTS', 'ScanPoints']
+__all__ = ['PipelineState', 'StepResult', 'step', 'held', 'reset', 'EVENTS', 'ScanPoints']

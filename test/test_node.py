@@ -236,6 +236,38 @@ def test_diagnostics_give_each_scan_its_figures_and_the_event_counts(harness):
     assert {kv.key: kv.value for kv in st.values}['count_malformed_scan'] == '2'
 
 
+def test_a_pipeline_failure_is_answered_counted_and_survived(harness, monkeypatch):
+    """A bug that makes step raise on one scan: the node stays up, publishes the previous
+    estimates for that scan (its stamp, the tracked frame), with diagnostics at ERROR,
+    logs and counts it, and carries on with the next scan from the unchanged state."""
+    import extended_tracker.ros.node as node_mod
+    from diagnostic_msgs.msg import DiagnosticStatus
+
+    real_step = node_mod.step
+    calls = {'n': 0}
+
+    def failing_once(*args, **kwargs):
+        calls['n'] += 1
+        if calls['n'] == 15:
+            raise RuntimeError('a bug')
+        return real_step(*args, **kwargs)
+
+    monkeypatch.setattr(node_mod, 'step', failing_once)
+    data = simulate(tutorial_scene(), 2.0, seed=0)
+    replies = [harness.send(ros_scan(scan)) for scan, _ in data]
+    assert len(replies) == harness.node.scans == 20
+    before, failed, after = replies[13], replies[14], replies[15]
+    assert [o.id for o in failed.objects] == [o.id for o in before.objects] != []
+    assert [o.position.x for o in failed.objects] == [o.position.x for o in before.objects]
+    assert failed.header.stamp == ros_scan(data[14][0]).header.stamp
+    assert failed.header.frame_id == 'laser'
+    st = harness.diagnostics[14].status[0]
+    assert st.level == DiagnosticStatus.ERROR and st.message == 'internal_error'
+    assert harness.node.counts == {'internal_error': 1}
+    assert harness.diagnostics[15].status[0].level == DiagnosticStatus.OK
+    assert {o.id for o in after.objects} == {o.id for o in before.objects}
+
+
 def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
     """A driver that leaves header.stamp zero: each scan is taken (and answered) at the
     node's clock when it arrived, counted as zero_stamp; none is dropped as a repeat."""

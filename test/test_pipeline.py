@@ -155,6 +155,23 @@ def test_a_zero_stamp_takes_the_arrival_time():
     assert res.event is None and res.stamp_ns == first.header.stamp.sec * 10**9
 
 
+def test_held_answers_with_the_previous_estimates():
+    """held: what the node publishes for a scan the pipeline failed on."""
+    from extended_tracker.pipeline import held
+
+    state = warm_state()
+    nxt = scans(21)[-1]
+    res = held(state, nxt, 'internal_error', 'why')
+    assert res.stamp_ns == nxt.header.stamp.sec * 10**9 + nxt.header.stamp.nanosec
+    assert res.frame_id == 'laser' and (res.event, res.error) == ('internal_error', 'why')
+    assert res.estimates is state.last_estimates and len(res.estimates) >= 3
+    assert held(state, object(), 'e', 'x').stamp_ns == state.last_stamp_ns  # no header
+    assert held(state, with_stamp(nxt, 0), 'e', 'x', arrival_ns=7).stamp_ns == 7
+    other = copy.deepcopy(nxt)
+    other.header.frame_id = 'rear_laser'
+    assert held(state, other, 'e', 'x').frame_id == 'laser'      # the tracked frame
+
+
 def test_a_time_gap_forgets_which_labels_moved():
     """The labels seen to move (they protect their returns) go with the tracks."""
     state = warm_state(30, BG_CFG)

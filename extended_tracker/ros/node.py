@@ -32,10 +32,13 @@ from visualization_msgs.msg import MarkerArray
 from ..config import from_flat, iter_leaves, to_flat, TrackerConfig
 from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
-from ..pipeline import PipelineState, reset, step
+from ..pipeline import held, PipelineState, reset, step
 from .convert import fill
 
 NODE_NAME = 'extended_tracker'
+# the node's own event: the pipeline raised on a scan (a bug), answered with the previous
+# estimates
+INTERNAL_ERROR = 'internal_error'
 _PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
           'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
           'list': ParameterType.PARAMETER_DOUBLE_ARRAY}
@@ -143,15 +146,18 @@ class TrackerNode(Node):
 
     # --- the callback ---
     def on_scan(self, msg: LaserScan) -> None:
+        # the arrival time stands in for a zero header stamp (event zero_stamp)
+        arrival = self.get_clock().now().nanoseconds
         try:
-            # the arrival time stands in for a zero header stamp (event zero_stamp)
-            self.state, result = step(self.state, msg, self.cfg,
-                                      arrival_ns=self.get_clock().now().nanoseconds)
-        except Exception as err:  # a bug must not take the node down; say it loudly
-            self._count('internal_error', f'pipeline failed on a scan: {err!r}', error=True)
-            return
+            self.state, result = step(self.state, msg, self.cfg, arrival_ns=arrival)
+        except Exception as err:
+            # a bug must not take the node down, nor leave the scan unanswered: say it
+            # loudly, and publish the previous estimates for it (the state is unchanged)
+            text = f'pipeline failed on a scan: {err!r}'
+            self._count(INTERNAL_ERROR, text, error=True)
+            result = held(self.state, msg, INTERNAL_ERROR, text, arrival)
         self.scans += 1
-        if result.event:
+        if result.event and result.event != INTERNAL_ERROR:
             self._count(result.event, result.error or result.event.replace('_', ' '))
         self.pub_tracks.publish(fill(ExtendedObjectArray(), tracks_data(result, self.cfg)))
         # markers only while something listens (RViz, a recorder): building and publishing
@@ -187,7 +193,8 @@ class TrackerNode(Node):
         st = DiagnosticStatus()
         st.name = f'{self.get_name()}: tracker'
         st.hardware_id = result.frame_id
-        st.level = DiagnosticStatus.WARN if result.event else DiagnosticStatus.OK
+        st.level = (DiagnosticStatus.ERROR if result.event == INTERNAL_ERROR else
+                    DiagnosticStatus.WARN if result.event else DiagnosticStatus.OK)
         st.message = result.event or 'ok'
         values = dict(result.diagnostics)
         values['processing_time_ms'] = round(result.processing_time * 1e3, 3)
