@@ -268,6 +268,35 @@ def test_a_pipeline_failure_is_answered_counted_and_survived(harness, monkeypatc
     assert {o.id for o in after.objects} == {o.id for o in before.objects}
 
 
+def test_a_failure_to_build_the_messages_is_counted_and_survived(harness, monkeypatch):
+    """A bug in building one scan's markers: out of the callback, the exception would end
+    spin and the node with it. It is logged and counted; that scan's diagnostics still
+    go out, and the next scan is answered in full."""
+    import extended_tracker.ros.node as node_mod
+
+    real = node_mod.markers_data
+    calls = {'n': 0}
+
+    def failing_once(*args, **kwargs):
+        calls['n'] += 1
+        if calls['n'] == 3:
+            raise ValueError('a bug')
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(node_mod, 'markers_data', failing_once)
+    data = simulate(tutorial_scene(), 0.5, seed=0)
+    for scan, _ in data[:2]:
+        harness.send(ros_scan(scan))
+    harness.expect_markers = False                        # the third gets none
+    harness.send(ros_scan(data[2][0]))
+    assert len(harness.markers) == 2 and len(harness.diagnostics) == 3
+    assert harness.node.counts == {'internal_error': 1}
+    harness.expect_markers = True
+    for scan, _ in data[3:]:
+        harness.send(ros_scan(scan))
+    assert len(harness.markers) == len(harness.tracks) - 1 == 4
+
+
 def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
     """A driver that leaves header.stamp zero: each scan is taken (and answered) at the
     node's clock when it arrived, counted as zero_stamp; none is dropped as a repeat."""

@@ -159,13 +159,17 @@ class TrackerNode(Node):
         self.scans += 1
         if result.event and result.event != INTERNAL_ERROR:
             self._count(result.event, result.error or result.event.replace('_', ' '))
-        self.pub_tracks.publish(fill(ExtendedObjectArray(), tracks_data(result, self.cfg)))
-        # markers only while something listens (RViz, a recorder): building and publishing
-        # them costs about half as much again as the tracking step. The ids last drawn
-        # stay remembered, so a listener that returns gets the deletions it needs.
-        if self.pub_markers.get_subscription_count() > 0:
-            mdata, self.marker_ids = markers_data(result, self.cfg, self.marker_ids)
-            self.pub_markers.publish(fill(MarkerArray(), mdata))
+        try:
+            self.pub_tracks.publish(fill(ExtendedObjectArray(), tracks_data(result, self.cfg)))
+            # markers only while something listens (RViz, a recorder): building and
+            # publishing them costs about half as much again as the tracking step. The ids
+            # last drawn stay remembered, so a listener that returns gets the deletions.
+            if self.pub_markers.get_subscription_count() > 0:
+                mdata, self.marker_ids = markers_data(result, self.cfg, self.marker_ids)
+                self.pub_markers.publish(fill(MarkerArray(), mdata))
+        except Exception as err:           # an exception out of a callback ends spin
+            self._count(INTERNAL_ERROR, f'publishing the estimates failed: {err!r}',
+                        error=True)
         self.pub_diag.publish(self._diagnostics(result))
 
     def _on_reset(self, request, response):
