@@ -530,3 +530,18 @@ def test_invalid_value_at_start_up_is_refused_and_leaves_no_context(monkeypatch)
     with NodeHarness(NO_BACKGROUND, markers=False) as h:
         assert made[1].ok() and h.send(ros_scan(simulate(tutorial_scene(), 0.1, seed=1)[0][0]))
     assert not made[1].ok()
+
+
+def test_every_event_is_explained_in_the_readme():
+    """The README's list of events names each one the pipeline and the node can raise,
+    and no other."""
+    import re
+
+    from extended_tracker.pipeline import EVENTS
+    from extended_tracker.ros.node import INTERNAL_ERROR
+
+    text = (ROOT / 'README.md').read_text()
+    block = text.split('- **Events**')[1].split('\n- **')[0]
+    listed = set(re.findall(r'^  - `(\w+)`(?:, `(\w+)`)?', block, re.M))
+    names = {n for pair in listed for n in pair if n}
+    assert names == set(EVENTS) | {INTERNAL_ERROR}
