@@ -159,13 +159,18 @@ def held(state: PipelineState, scan, event: str, error: str,
     frame, so the scan still gets its publication.
     """
     try:
-        now = stamp_ns(scan)
+        now, _ = _scan_time(stamp_ns(scan), arrival_ns)
         frame = frame_of(scan)
     except (AttributeError, TypeError, ValueError):
         now, frame = state.last_stamp_ns or 0, ''
-    if now == 0 and arrival_ns is not None:
-        now = int(arrival_ns)
     return _repeat(state, now, state.frame_id or frame, event, error, time.perf_counter())
+
+
+def _scan_time(stamp: int, arrival_ns: int | None) -> tuple[int, bool]:
+    """The time a scan is taken at, and whether its stamp was zero and the arrival time
+    (when known) stands in for it."""
+    zero = stamp == 0 and arrival_ns is not None
+    return (int(arrival_ns) if zero else stamp), zero
 
 
 def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
@@ -214,9 +219,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     except (AttributeError, TypeError, ValueError) as err:
         return state, _repeat(state, state.last_stamp_ns or 0, state.frame_id or '',
                               'malformed_scan', f'unreadable header: {err}', t0)
-    zero_stamp = now == 0 and arrival_ns is not None
-    if zero_stamp:
-        now = int(arrival_ns)
+    now, zero_stamp = _scan_time(now, arrival_ns)
     try:
         sp = scan_to_points(scan, cfg.scan.min_range, cfg.scan.max_range,
                             cfg.scan.range_max_inclusive)
@@ -240,7 +243,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     elif now < state.last_stamp_ns:
         event = 'time_backwards'
         error = (f'stamp {(state.last_stamp_ns - now) * 1e-9:.3f} s before the previous '
-                 f'scan\'s (a bag that looped, or sim time not set?): tracks restarted')
+                 f'scan\'s (a bag that looped, or a clock jump?): tracks restarted')
         filt = _reset(filt, cfg)
         dt = cfg.timing.default_dt
     else:

@@ -36,8 +36,8 @@ from ..pipeline import held, PipelineState, reset, step
 from .convert import fill
 
 NODE_NAME = 'extended_tracker'
-# the node's own event: the pipeline raised on a scan (a bug), answered with the previous
-# estimates
+# the node's own event, a bug: the pipeline raised on a scan (answered with the previous
+# estimates), or building or publishing its messages did
 INTERNAL_ERROR = 'internal_error'
 _PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
           'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,

@@ -24,12 +24,17 @@ from __future__ import annotations
 import os
 import time
 
+from diagnostic_msgs.msg import DiagnosticArray
+from extended_tracker_msgs.msg import ExtendedObjectArray
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
+from visualization_msgs.msg import MarkerArray
 
+from ..bagio import scan_data
 from .convert import fill
 from .node import TrackerNode
 
@@ -39,10 +44,6 @@ SPIN_LIMIT_S = 5.0          # per awaited message; loopback delivery takes milli
 def laser_scan(scan):
     """A ``sensor_msgs/LaserScan`` of any LaserScan-shaped object (returned as is if it
     is one)."""
-    from sensor_msgs.msg import LaserScan
-
-    from ..bagio import scan_data
-
     return scan if isinstance(scan, LaserScan) else fill(LaserScan(), scan_data(scan))
 
 
@@ -72,10 +73,6 @@ class NodeHarness:
 
     def __init__(self, parameters: dict | None = None, args=None, markers: bool = True,
                  spin_limit: float = SPIN_LIMIT_S):
-        from diagnostic_msgs.msg import DiagnosticArray
-        from extended_tracker_msgs.msg import ExtendedObjectArray
-        from sensor_msgs.msg import LaserScan
-
         os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
         self.spin_limit = spin_limit
         self.ctx = Context()
@@ -112,8 +109,6 @@ class NodeHarness:
     def watch_markers(self) -> None:
         """Subscribe the probe to the markers, wait until the node sees the subscription,
         and expect markers with every reply from now on."""
-        from visualization_msgs.msg import MarkerArray
-
         self.probe.create_subscription(MarkerArray, 'tracks/markers', self.markers.append, 50)
         self.spin_until(lambda: self.node.pub_markers.get_subscription_count() >= 1)
         self.expect_markers = True
