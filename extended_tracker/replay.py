@@ -5,8 +5,9 @@ The output holds the node's topics: ``/scan`` (the input scans as read, in ROS 2
 whatever the input bag's topic and ROS version), ``/tracks`` (ExtendedObjectArray) and
 ``/tracks/markers`` (MarkerArray), stamped with the scan stamps, with the message
 definitions stored so ``ros2 bag play`` on a Jazzy install replays it (and the installed
-RViz view shows it as it shows the live node). It is written into a temporary folder beside the target
-and renamed into place only when complete: an interrupted replay leaves no bag.
+RViz view shows it as it shows the live node). It is written into a temporary folder
+beside the target and renamed into place only when complete: an interrupted replay
+leaves no bag.
 """
 
 from __future__ import annotations

@@ -501,7 +501,8 @@ def test_node_overhead_bench_with_and_without_a_marker_listener(marker_builds):
 def test_the_readme_harness_example_runs(capsys):
     """The README's launch-free example, as printed there, against the installed node."""
     text = (ROOT / 'README.md').read_text()
-    block = text.split('<!-- harness-example:begin -->')[1].split('<!-- harness-example:end -->')[0]
+    block = text.split('<!-- harness-example:begin -->')[1]
+    block = block.split('<!-- harness-example:end -->')[0]
     code = block.split('```python\n')[1].split('```')[0]
     exec(compile(code, 'README.md harness example', 'exec'), {})
     first, second = capsys.readouterr().out.splitlines()

@@ -112,7 +112,8 @@ def test_gap_reinitialises_and_dt_is_never_negative():
     assert res.event == 'time_gap'
     assert new_state.filter.dt == pytest.approx(CFG.timing.default_dt)
     # the log line says how long the gap was and what it was over
-    assert res.error == '5.000 s since the previous scan, over timing.max_gap (2 s): tracks restarted'
+    assert res.error == ('5.000 s since the previous scan, over timing.max_gap (2 s): '
+                         'tracks restarted')
 
 
 def test_max_gap_below_the_scan_period_says_so_on_every_scan():
