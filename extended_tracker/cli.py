@@ -105,6 +105,9 @@ def cmd_real(args) -> int:
               f'{s.distinct_ids:5d} {s.moving_ids:6d} {s.mean_count:6.2f} '
               f'{s.median_ms:7.2f} {s.p99_ms:7.2f}  '
               f'{"--config" if given else (name or "defaults")}')
+        for event, count in sorted(s.events.items()):
+            why = s.first_reasons.get(event)
+            print(f'  {event} {count}' + (f' (first: {why})' if why else ''))
     print(f'bags and PNGs in {out}')
     return 0
 

@@ -238,3 +238,25 @@ def test_cli_replay_with_a_preset(tmp_path, capsys):
                  str(cfg), '--preset', 'leg_height', '--quiet']) == 2
     assert '--config or --preset, not both' in capsys.readouterr().err
     assert not (tmp_path / 'o2').exists()
+
+
+def test_real_replays_every_folder_with_a_line_each(tmp_path, capsys):
+    """`extended-tracker real` on a folder of recordings: one line of figures per bag, its
+    PNG and output bag, and a bag's events under its line with the first reason."""
+    from extended_tracker.cli import main
+
+    data = tmp_path / 'real'
+    data.mkdir()
+    write_ros2(data / 'a_plain')
+    write_ros2(data / 'b_unstamped', zero_stamps=True)
+    assert main(['real', '--data', str(data), '--out', str(tmp_path / 'out')]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[:3] == ['bag', 'scans', 'det/scan']
+    plain, unstamped = lines[1].split(), lines[2].split()
+    assert plain[0] == 'a_plain' and plain[1] == '20' and plain[-1] == 'defaults'
+    assert unstamped[0] == 'b_unstamped' and unstamped[1:6] == plain[1:6]   # same tracks
+    assert lines[3].startswith('  zero_stamp 20 (first: the header stamp is zero')
+    assert lines[4] == f'bags and PNGs in {tmp_path / "out"}'
+    for name in ('a_plain', 'b_unstamped'):
+        assert (tmp_path / 'out' / f'{name}.png').stat().st_size > 10_000
+        assert (tmp_path / 'out' / f'{name}_tracks').is_dir()
