@@ -119,3 +119,29 @@ def test_the_results_do_not_rest_on_the_last_bit(monkeypatch):
                                                          want.fragmentations)
         for field in ('gospa_mean', 'missed_mean', 'false_mean', 'cardinality_error'):
             assert abs(getattr(got, field) - getattr(want, field)) < 1e-6, (variant, field)
+
+
+def test_simulate_command_writes_a_bag_and_its_truth(tmp_path, capsys):
+    """`extended-tracker simulate`: the bag, its truth and a JSON summary; an existing
+    output is refused with a clear error and exit code 2."""
+    import json
+
+    from extended_tracker.cli import main
+
+    out = tmp_path / 'sim'
+    assert main(['simulate', str(out), '--scene', 'tutorial', '--seed', '3',
+                 '--duration', '1.5']) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info['scene'] == 'tutorial' and info['seed'] == 3 and info['scans'] == 15
+    truth = json.loads((out / 'truth.json').read_text())
+    # the truth is the simulator's, scan by scan
+    from extended_tracker.sim.laser import simulate, tutorial_scene
+
+    sim = simulate(tutorial_scene(), 1.5, seed=3)
+    assert len(truth['scans']) == len(sim) == 15
+    for rec, (scan, objs) in zip(truth['scans'], sim):
+        assert rec['stamp_ns'] == scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
+        assert [(o['id'], o['centre']) for o in rec['objects']] == [
+            (o.id, o.centre.tolist()) for o in objs]
+    assert main(['simulate', str(out)]) == 2
+    assert 'exists; refusing to overwrite' in capsys.readouterr().err
