@@ -151,6 +151,46 @@ def test_corrupt_and_missing_inputs_give_clear_errors(tmp_path):
     assert not (tmp_path / 'out').exists()
 
 
+def test_an_undecodable_scan_record_stops_with_its_topic(tmp_path):
+    """A bag that opens, with a record on the LaserScan topic that is not a LaserScan:
+    the replay stops with an error naming the topic, and leaves no output."""
+    from rosbags.rosbag2 import Writer
+
+    store = message_typestore()
+    with Writer(tmp_path / 'in', version=9) as w:
+        c = w.add_connection('/scan', SCAN_TYPE, typestore=store)
+        scan = sim_scans(0.1)[0]
+        w.write(c, 1, store.serialize_cdr(build_message(store, SCAN_TYPE, scan_data(scan)),
+                                          SCAN_TYPE))
+        w.write(c, 2, b'\x00\x01\x00\x00' + b'\xff' * 12)      # a CDR header, then junk
+    with pytest.raises(BagError, match='cannot decode a LaserScan on /scan'):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    assert not (tmp_path / 'out').exists() and not list(tmp_path.glob('.out.partial*'))
+
+
+def test_progress_bar_on_a_terminal_only(tmp_path):
+    import io
+
+    from extended_tracker.replay import _Progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty = Terminal()
+    bar = _Progress(4, tty)
+    for done in range(1, 5):
+        bar.update(done)                               # the last one always drawn
+    bar.close()
+    out = tty.getvalue()
+    assert out.startswith('\r[#######') and out.endswith(f'\r[{"#" * 30}] 4/4 scans\n')
+    pipe = io.StringIO()
+    quiet = _Progress(4, pipe)
+    quiet.update(4)
+    quiet.close()
+    assert pipe.getvalue() == ''
+
+
 def test_no_laserscan_topic(tmp_path):
     from rosbags.rosbag2 import Writer
 

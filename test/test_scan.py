@@ -38,6 +38,19 @@ def test_every_invalid_kind_is_masked_and_counted():
     assert inclusive.beam.tolist() == [5, 6] and inclusive.masked['above_max'] == 1
 
 
+def test_configured_range_limits_tighten_the_scans_own():
+    """scan.min_range / scan.max_range narrow the scan's range_min / range_max (never
+    widen them); the beams they drop count as below_min / above_max."""
+    ranges = [0.05, 0.3, 1.0, 4.0, 6.0, 9.5]          # scan limits 0.1 .. 10 m
+    sp = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1), min_range=0.5,
+                        max_range=5.0)
+    assert sp.beam.tolist() == [2, 3]
+    assert sp.masked['below_min'] == 2 and sp.masked['above_max'] == 2
+    loose = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1), min_range=0.01,
+                           max_range=50.0)
+    assert loose.beam.tolist() == [1, 2, 3, 4, 5]      # the scan's own 0.1 m still holds
+
+
 def test_zero_ranges_of_drivers_count_below_min():
     sp = scan_to_points(make_scan([0.0, 0.0, 2.0], range_min=0.02))
     assert sp.masked['below_min'] == 2 and len(sp.points) == 1
@@ -67,6 +80,8 @@ def test_empty_and_all_invalid_scans_give_no_points():
     ({'range_min': 5.0, 'range_max': 1.0}, 'range limits'),
     ({'range_max': float('inf')}, 'range_max must be finite'),
     ({'angle_max': 5.0}, 'disagrees'),
+    ({'range_min': 'near'}, 'range_min must be a number'),
+    ({'range_max': [10.0]}, 'range_max must be a number'),
 ])
 def test_malformed_scans_raise_clear_errors(kwargs, fragment):
     with pytest.raises(ScanError, match=fragment):
