@@ -174,9 +174,14 @@ def evaluate_bag(output_bag, truth_path, plot=None):
 
     from .bagio import message_typestore
 
-    truth = json.loads(Path(truth_path).read_text())
-    by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
-    view = truth.get('info', {}).get('view')
+    try:
+        truth = json.loads(Path(truth_path).read_text())
+        by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
+        view = truth.get('info', {}).get('view')
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
+        msg = (f'cannot read the truth {truth_path} (a truth.json written by '
+               f'extended-tracker simulate): {err!r}')
+        raise BagError(msg) from err
     store = message_typestore()
     truth_seq, est_seq, stamps, counts = [], [], [], []
     try:

@@ -145,3 +145,30 @@ def test_simulate_command_writes_a_bag_and_its_truth(tmp_path, capsys):
             (o.id, o.centre.tolist()) for o in objs]
     assert main(['simulate', str(out)]) == 2
     assert 'exists; refusing to overwrite' in capsys.readouterr().err
+
+
+def test_evaluate_refuses_bad_inputs_with_clear_errors(tmp_path, capsys):
+    """A missing or broken truth file, a broken bag, a bag without /tracks, tracks whose
+    stamps the truth does not have: each a one-line error and exit code 2."""
+    from extended_tracker.cli import main
+
+    write_sim_bag(tmp_path / 'scans', 'tutorial', seed=0, duration=0.5)
+    truth = tmp_path / 'scans' / 'truth.json'
+    replay(tmp_path / 'scans', tmp_path / 'out', from_dict({}), progress=False)
+    (tmp_path / 'bad.json').write_text('{"scans": [')
+    (tmp_path / 'other.json').write_text(json.dumps({'scans': [{'stamp_ns': 5,
+                                                                 'objects': []}]}))
+    (tmp_path / 'empty').mkdir()
+    cases = [
+        (tmp_path / 'out', tmp_path / 'missing.json', 'cannot read the truth'),
+        (tmp_path / 'out', tmp_path / 'bad.json', 'cannot read the truth'),
+        (tmp_path / 'empty', truth, 'cannot read'),
+        (tmp_path / 'scans', truth, 'has no /tracks topic'),
+        (tmp_path / 'out', tmp_path / 'other.json', 'no /tracks message matches'),
+    ]
+    for bag, truth_file, fragment in cases:
+        assert main(['evaluate', str(bag), '--truth', str(truth_file)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith('extended-tracker: error: ') and fragment in err, err
+        assert len(err.strip().splitlines()) == 1
+    assert main(['evaluate', str(tmp_path / 'out'), '--truth', str(truth)]) == 0
