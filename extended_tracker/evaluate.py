@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import from_dict
-from .errors import BagError
+from .errors import BagError, ExtendedTrackerError
 from .metrics import score_sequence
 from .pipeline import PipelineState, step
 from .sim import laser
@@ -147,9 +147,12 @@ def scenario_notes() -> str:
 def write_readme_results(readme: Path) -> None:
     """Replace the README's results section between its markers."""
     begin, end = '<!-- results:begin -->', '<!-- results:end -->'
-    text = readme.read_text()
+    try:
+        text = readme.read_text()
+    except OSError as err:
+        raise ExtendedTrackerError(f'cannot read {readme}: {err}') from err
     if begin not in text or end not in text:
-        raise BagError(f'{readme} has no {begin} ... {end} section')
+        raise ExtendedTrackerError(f'{readme} has no {begin} ... {end} section')
     body = (f'{begin}\nGOSPA: alpha = 2, c = {GOSPA_C:g} m, p = {GOSPA_P:g}, '
             'Gaussian-Wasserstein base distance between ellipses; missed and false are the '
             'GOSPA parts (c^p/2 per object, mean per scan); card. error is the mean '

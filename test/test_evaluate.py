@@ -145,6 +145,40 @@ def test_simulate_command_writes_a_bag_and_its_truth(tmp_path, capsys):
             (o.id, o.centre.tolist()) for o in objs]
     assert main(['simulate', str(out)]) == 2
     assert 'exists; refusing to overwrite' in capsys.readouterr().err
+    for args, fragment in ((['--duration', '0'], 'duration must be a positive'),
+                           (['--duration', 'nan'], 'duration must be a positive'),
+                           (['--duration', 'inf'], 'duration must be a positive'),
+                           (['--seed', '-1'], 'seed must be a non-negative')):
+        assert main(['simulate', str(tmp_path / 'refused')] + args) == 2
+        assert fragment in capsys.readouterr().err
+        assert not (tmp_path / 'refused').exists()
+
+
+def test_results_go_between_the_readme_markers_and_nowhere_else(tmp_path, monkeypatch,
+                                                                capsys):
+    """`extended-tracker results --readme`: the section between the markers is
+    replaced, the rest of the file kept byte for byte; a file without the markers, or
+    none, is a one-line error (the suite is not run for nothing)."""
+    import extended_tracker.evaluate as ev
+    from extended_tracker.cli import main
+
+    monkeypatch.setattr(ev, 'results_table', lambda: '| the table |')
+    monkeypatch.setattr(ev, 'scenario_notes', lambda: '- the notes')
+    readme = tmp_path / 'README.md'
+    head, tail = '# x\n\nbefore\n', '\nafter <!-- not a marker -->\n'
+    readme.write_text(head + '<!-- results:begin -->\nold\n<!-- results:end -->' + tail)
+    assert main(['results', '--readme', str(readme)]) == 0
+    text = readme.read_text()
+    assert text.startswith(head + '<!-- results:begin -->\nGOSPA: alpha = 2')
+    assert text.endswith('- the notes\n\n| the table |\n<!-- results:end -->' + tail)
+    assert 'old' not in text
+    assert main(['results', '--readme', str(readme)]) == 0 and readme.read_text() == text
+    capsys.readouterr()
+    (tmp_path / 'plain.md').write_text('# no markers\n')
+    for path, fragment in ((tmp_path / 'plain.md', 'has no <!-- results:begin -->'),
+                           (tmp_path / 'missing.md', 'cannot read')):
+        assert main(['results', '--readme', str(path)]) == 2
+        assert fragment in capsys.readouterr().err
 
 
 def test_evaluate_refuses_bad_inputs_with_clear_errors(tmp_path, capsys):

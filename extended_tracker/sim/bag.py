@@ -35,6 +35,10 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
         raise BagError(f'output {out} exists; refusing to overwrite it')
     if scene not in SCENE_OF:
         raise BagError(f'unknown scene {scene!r}; choose one of {sorted(SCENE_OF)}')
+    if not duration > 0 or duration == float('inf'):
+        raise BagError(f'duration must be a positive number of seconds, got {duration}')
+    if seed < 0:
+        raise BagError(f'seed must be a non-negative integer, got {seed}')
     sim_scene = SCENE_OF[scene]()
     data = laser.simulate(sim_scene, duration, seed)
     store = message_typestore()
