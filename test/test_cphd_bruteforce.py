@@ -191,6 +191,41 @@ def test_cphd_equals_brute_force(seed, clutter, dead, batched, monkeypatch):
     assert total == pytest.approx(np.sum(np.arange(5) * ref_card), rel=1e-10)
 
 
+def _check_against_brute_force(card, s, f, c, pc, log_pc=None):
+    ref_card, ref_missed, ref_det = brute_force(card, s, f, c, pc)
+    with np.errstate(divide='ignore'):                 # log 0 = -inf: the edge itself
+        log_w, log_qd, log_g, cell_log_c, size, parts, masks = filter_inputs(card, s, f, c)
+        out = cphd_update(log_w, log_qd, log_g, cell_log_c, size, parts, np.log(card),
+                          np.log(pc) if log_pc is None else log_pc)
+    np.testing.assert_allclose(np.exp(out.log_card), ref_card, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(np.exp(out.log_w_missed), ref_missed, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(np.exp(out.log_w_detected), ref_det[:, masks], rtol=1e-10,
+                               atol=1e-14)
+
+
+@pytest.mark.parametrize('seed', [0, 1])
+def test_cphd_edges_equal_brute_force(seed):
+    """
+    The update's edge cases against enumeration: objects that are always detected (q_D =
+    0 in every state, so q0 = 0 and 0 * log q0 must be 0); a prior with no objects at all
+    (only clutter explains the scan); a clutter pmf shorter than the detections (more
+    clutter than it allows is impossible: the filter pads it with zeros).
+    """
+    s, f, c = make_world(seed)
+    rng = np.random.default_rng(200 + seed)
+    card = rng.dirichlet(np.ones(5))
+    pc = np.exp(poisson_log_pmf(1.3, M))
+    always = f.copy()
+    always[:, 0] = 0.0                                 # never missed
+    _check_against_brute_force(card, s, always, c, pc)
+    none = np.zeros(5)
+    none[0] = 1.0                                      # surely no object
+    _check_against_brute_force(none, s, f, c, pc)
+    short = np.array([0.2, 0.5, 0.3])                  # at most two clutter detections
+    _check_against_brute_force(card, s, f, c, np.concatenate([short, np.zeros(M - 2)]),
+                               log_pc=np.log(short))
+
+
 @pytest.mark.parametrize('seed', [0, 1, 2])
 def test_phd_equals_brute_force_with_poisson_prior(seed):
     s, f, c = make_world(seed)
