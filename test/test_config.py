@@ -19,6 +19,10 @@ from extended_tracker.errors import ConfigError
     ({'model.n_max': 2.5}, 'model.n_max must be an integer'),
     ({'model.sigma_accel': float('nan')}, 'must be finite'),
     ({'partition.d_min': 0.9, 'partition.d_max': 0.5}, 'd_min (0.9) must not exceed'),
+    ({'model.rho': '0.25'}, "model.rho must be a number, got '0.25'"),
+    ({'model.rho': True}, 'model.rho must be a number, got True'),
+    ({'birth.regions': [1.0, 'a', 2.0]}, 'birth.regions must be a list of finite numbers'),
+    ({'birth.regions': 3.0}, 'birth.regions must be a list of finite numbers'),
 ])
 def test_bad_values_are_refused_with_the_reason(flat, message):
     with pytest.raises(ConfigError) as err:
@@ -33,6 +37,8 @@ def test_unknown_keys_and_sections_are_refused():
         from_dict({'filterr': {}})
     with pytest.raises(ConfigError, match='section.key'):
         from_flat({'rho': 1.0})
+    with pytest.raises(ConfigError, match='section model must be a mapping, got 3'):
+        from_dict({'model': 3})
 
 
 def test_round_trips_and_documentation():

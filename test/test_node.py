@@ -371,6 +371,11 @@ def test_invalid_values_are_refused_with_a_reason(harness):
     assert not res.successful and 'd_min' in res.reason
     res = harness.node.set_parameters([Parameter('model.mode', value='phd')])[0]
     assert res.successful and harness.node.cfg.model.mode == 'phd'
+    # rclpy's own parameters pass through the check untouched
+    before = harness.node.cfg
+    res = harness.node.set_parameters([Parameter('use_sim_time', value=True)])[0]
+    assert res.successful and harness.node.cfg == before
+    assert harness.node.get_parameter('use_sim_time').value is True
 
 
 def test_unknown_parameters_are_named_once_with_the_nearest_known_one():
