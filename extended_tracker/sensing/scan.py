@@ -154,6 +154,39 @@ class ScanPoints:
         a scan)."""
         return self.ranges[self.sorted_beams[0]]
 
+    @property
+    def full_turn(self) -> bool:
+        """The beams go all the way round (a 360 degree scanner): no edge of the field of
+        view, the last beam next to the first."""
+        step = self.angle_step
+        return step > 0 and self.angle_hi - self.angle_lo + 1.5 * step >= 2 * math.pi
+
+    @cached_property
+    def wrapped_beams(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        ``(order, angles)`` of :attr:`sorted_beams` with half a turn of beams repeated
+        2 pi below and above for a :attr:`full_turn` scan, so that an interval across the
+        seam finds its beams on both sides (``sorted_beams``' own for any other scan).
+        """
+        order, ang, _ = self.sorted_beams
+        if not self.full_turn:
+            return order, ang
+        half = len(ang) // 2
+        return (np.concatenate([order[-half:], order, order[:half]]),
+                np.concatenate([ang[-half:] - 2 * math.pi, ang, ang[:half] + 2 * math.pi]))
+
+    def in_scan_frame(self, bearing: np.ndarray) -> np.ndarray:
+        """
+        Bearings (``arctan2``, in (-pi, pi]) moved by whole turns to lie nearest the middle
+        of the field of view, where the beam angles are: a scanner reporting 0 to 2 pi
+        (some 360 degree drivers do) has the beam of bearing -pi/2 at 3 pi/2. Unchanged,
+        bit for bit, where no turn is needed.
+        """
+        turns = np.round((0.5 * (self.angle_lo + self.angle_hi) - bearing) / (2 * math.pi))
+        if not np.logical_or.reduce(turns != 0, axis=None):
+            return bearing
+        return bearing + (2 * math.pi) * turns
+
 
 def _median(x: np.ndarray) -> float:
     """``np.median`` of a 1-D array (the same value) without its dispatch: the mean of the

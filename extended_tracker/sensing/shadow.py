@@ -117,7 +117,12 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     if k == 0 or len(scan.angles) == 0:
         return np.zeros(k), (np.zeros(k) if with_shift else None)
     order, ang, step = scan.sorted_beams
-    rng = scan.sorted_ranges if beam_range is scan.ranges else beam_range[order]
+    full = scan.full_turn
+    if full:                 # the seam has beams on both sides: no edge cuts an interval
+        order, ang = scan.wrapped_beams
+        rng = beam_range[order]
+    else:
+        rng = scan.sorted_ranges if beam_range is scan.ranges else beam_range[order]
     lo = ang.searchsorted(bearing - half_angle, side='left')
     hi = ang.searchsorted(bearing + half_angle, side='right')
     # an interval narrower than the beam spacing still sees its nearest beam
@@ -163,15 +168,20 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     frac_visible = 1.0 - blocked_n / width
     # part of the interval outside the field of view is not seen at all: the lengths cut
     # off each end are exactly 0 where the field of view holds it
-    step = max(step, 1e-9)
-    start, end = bearing - half_angle, bearing + half_angle
-    cut_lo = np.maximum(np.minimum(scan.angle_lo - step / 2, end) - start, 0.0)
-    cut_hi = np.maximum(end - np.maximum(scan.angle_hi + step / 2, start), 0.0)
-    span = 2 * half_angle
-    in_fov = np.where(span > 0, np.minimum(np.maximum(
-        1.0 - (cut_lo + cut_hi) / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
-    centre_in = (bearing >= scan.angle_lo - step / 2) & (bearing <= scan.angle_hi + step / 2)
-    visible = np.where(centre_in, frac_visible * in_fov, 0.0)
+    if full:
+        visible = frac_visible
+        cut_lo = cut_hi = 0.0
+    else:
+        step = max(step, 1e-9)
+        start, end = bearing - half_angle, bearing + half_angle
+        cut_lo = np.maximum(np.minimum(scan.angle_lo - step / 2, end) - start, 0.0)
+        cut_hi = np.maximum(end - np.maximum(scan.angle_hi + step / 2, start), 0.0)
+        span = 2 * half_angle
+        in_fov = np.where(span > 0, np.minimum(np.maximum(
+            1.0 - (cut_lo + cut_hi) / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
+        centre_in = ((bearing >= scan.angle_lo - step / 2)
+                     & (bearing <= scan.angle_hi + step / 2))
+        visible = np.where(centre_in, frac_visible * in_fov, 0.0)
     if not with_shift:
         return visible, None
     shift = np.where(visible > 0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
@@ -216,6 +226,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
         return Visibility(np.full(n, det.p_d0), ones, None)
     bearing, half, half_widened, r_near, r_far, r_c, across = _geometry(
         mix.m, mix.expected_extent(), mix.P, det.widen_sigmas, det.max_widen)
+    bearing = scan.in_scan_frame(bearing)
 
     def lookup(half_angle):
         if det.model == 'scan_shadow':
@@ -243,8 +254,10 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     offset = across * (turn * r_c)[:, None]
     # wholly out of the field of view or beyond range: the object has left the scene
     step = abs(scan.angle_step)
-    outside = ((r_near > scan.range_max) | (bearing + half < scan.angle_lo - step)
-               | (bearing - half > scan.angle_hi + step))
+    outside = r_near > scan.range_max
+    if not scan.full_turn:
+        outside |= (bearing + half < scan.angle_lo - step) | (bearing - half > scan.angle_hi
+                                                             + step)
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside)
@@ -323,6 +336,7 @@ def pair_detection_probability(mix: Mixture, comp: np.ndarray, m_updated: np.nda
     # the widened interval of each pair, as detection_model gives it for a component
     bearing, _, half_widened, r_near, *_ = _geometry(
         m_updated, mix.expected_extent(comp), P_updated, det.widen_sigmas, det.max_widen)
+    bearing = scan.in_scan_frame(bearing)
     if det.model == 'scan_shadow':
         visible, _ = _visible_fraction(bearing, half_widened, r_near, scan, scan.ranges,
                                        det.shadow_margin, shift_rows=0)
