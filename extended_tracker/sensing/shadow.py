@@ -256,8 +256,8 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     step = abs(scan.angle_step)
     outside = r_near > scan.range_max
     if not scan.full_turn:
-        outside |= (bearing + half < scan.angle_lo - step) | (bearing - half > scan.angle_hi
-                                                             + step)
+        outside |= ((bearing + half < scan.angle_lo - step)
+                    | (bearing - half > scan.angle_hi + step))
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside)
