@@ -445,3 +445,42 @@ def test_a_return_thinner_than_the_beam_spacing_in_front_of_the_wall_is_learned_
     assert state.background[15] == pytest.approx(4.0, abs=0.01)
     assert state.second[15] == pytest.approx(3.5, abs=0.01)
     assert not any(k[15] for k in kept[36:])
+
+
+def test_a_full_turn_learns_the_same_wherever_its_seam_falls():
+    """
+    A 360 degree scanner: a beam's neighbours across the seam (the last beam and the
+    first) count as neighbours. Oracle: the same scans with every range moved by half a
+    turn of beams learn the same background, moved the same way. The scene: a wall at
+    6 m, and across the seam a surface at 4 m that sparkles (each beam returns it in
+    some scans only, as at the edge of range), which neighbours' returns ripen.
+    """
+    from extended_tracker.sensing.scan import Header, ScanData, Stamp
+
+    cfg = from_dict({}).background
+    rng = np.random.default_rng(3)
+    n = 360
+    seq = []
+    for _ in range(25):
+        r = np.full(n, 6.0)
+        near = (np.arange(n) >= 350) | (np.arange(n) < 10)        # across the seam
+        r[near] = np.where(rng.random(near.sum()) < 0.3, 4.0, np.inf)
+        seq.append(r)
+
+    def learn(shift):
+        state = None
+        for r in seq:
+            scan = ScanData(Header(Stamp(1, 0), 'laser'), 0.0, 2 * np.pi * (n - 1) / n,
+                            2 * np.pi / n, 0.05, 13.0, np.roll(r, shift))
+            sp = scan_to_points(scan)
+            assert sp.full_turn
+            state, _ = update_background(state, sp, 0.1, cfg, np.zeros(n, bool))
+        return state
+
+    plain, turned = learn(0), learn(n // 2)
+    for name in ('background', 'candidate', 'candidate_age', 'learned'):
+        np.testing.assert_array_equal(np.roll(getattr(turned, name), -(n // 2)),
+                                      getattr(plain, name), err_msg=name)
+    seam = (np.arange(n) >= 350) | (np.arange(n) < 10)
+    assert np.isfinite(plain.background[~seam]).all()           # the wall
+    assert np.isfinite(plain.background[seam]).sum() >= 18      # the sparkling surface

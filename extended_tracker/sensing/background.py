@@ -113,9 +113,12 @@ with np.errstate(divide='ignore'):
     _PER_OFFSET = 1.0 / np.abs(_OFFSETS)           # inf for the beam itself
 
 
-def _padded(a, fill):
+def _padded(a, fill, wrap=False):
     """``a`` with NEIGHBOUR_BEAMS ``fill`` values either side, so that the window
-    ``i + NEIGHBOUR_BEAMS + _OFFSETS`` of any beam ``i`` is inside it."""
+    ``i + NEIGHBOUR_BEAMS + _OFFSETS`` of any beam ``i`` is inside it; with ``wrap`` (a
+    full turn of beams, the last next to the first) the other end's values instead."""
+    if wrap and len(a) >= NEIGHBOUR_BEAMS:
+        return np.concatenate([a[-NEIGHBOUR_BEAMS:], a, a[:NEIGHBOUR_BEAMS]])
     pad = np.full(NEIGHBOUR_BEAMS, fill, dtype=a.dtype)
     return np.concatenate([pad, a, pad])
 
@@ -128,7 +131,7 @@ def _reach(angle_step, margin):
     return _PER_OFFSET * (margin / angle_step)
 
 
-def _neighbour_returned(c, r, learn, idle, reach, margin):
+def _neighbour_returned(c, r, learn, idle, reach, margin, wrap=False):
     """
     The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
     scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
@@ -140,21 +143,21 @@ def _neighbour_returned(c, r, learn, idle, reach, margin):
     if not len(src):
         return hit
     j = src[:, None] + _OFFSETS                        # each return's neighbour beams
-    cj = _padded(c, np.nan)[j + NEIGHBOUR_BEAMS]       # NaN (none, or off the scan): False
-    ok = (_padded(idle, False)[j + NEIGHBOUR_BEAMS] & (np.abs(r[src, None] - cj) <= margin)
-          & (cj <= reach))
-    hit[j[ok]] = True
+    cj = _padded(c, np.nan, wrap)[j + NEIGHBOUR_BEAMS]  # NaN (none, or off the scan): False
+    ok = (_padded(idle, False, wrap)[j + NEIGHBOUR_BEAMS]
+          & (np.abs(r[src, None] - cj) <= margin) & (cj <= reach))
+    hit[j[ok] % len(c) if wrap else j[ok]] = True
     return hit
 
 
-def _alone(r, which, reach, margin):
+def _alone(r, which, reach, margin, wrap=False):
     """
     Which of the returns of beams ``which`` (indices) are thinner than the beam spacing:
     they have neighbours within ``margin`` across, none of which returned anything within
     ``margin`` of them (a mixed return at an edge, a thin pole; no person).
     """
     rs = r[which, None]
-    rj = _padded(r, np.inf)[which[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
+    rj = _padded(r, np.inf, wrap)[which[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
     near = (np.abs(rj - rs) <= margin) & _NOT_SELF & (rs <= reach)
     return (rs[:, 0] <= reach[NEIGHBOUR_BEAMS + 1]) & ~np.logical_or.reduce(near, axis=1)
 
@@ -218,7 +221,8 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # neighbour returned that range: a surface at the edge of range, or behind a gap,
         # sparkles over the beams
         reach = _reach(scan.angle_step, margin)
-        age = np.where(_neighbour_returned(c, r, learn, ~seen | is_bg, reach, margin),
+        wrap = scan.full_turn                         # the first beam next to the last
+        age = np.where(_neighbour_returned(c, r, learn, ~seen | is_bg, reach, margin, wrap),
                        age + dt, age)
         farther = ~known | (c > b + margin)
         nearer = known & (c < b - margin)
@@ -232,7 +236,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         thin = learn & nearer & ripe & ~lately & ~long
         if np.logical_or.reduce(thin):
             which = thin.nonzero()[0]
-            thin[which] = _alone(r, which, reach, margin)
+            thin[which] = _alone(r, which, reach, margin, wrap)
         promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin)))
         second = learn & ripe & lately & ~promote
         b = np.where(promote, c, b)
