@@ -165,12 +165,10 @@ class ScanPoints:
     def wrapped_beams(self) -> tuple[np.ndarray, np.ndarray]:
         """
         ``(order, angles)`` of :attr:`sorted_beams` with half a turn of beams repeated
-        2 pi below and above for a :attr:`full_turn` scan, so that an interval across the
-        seam finds its beams on both sides (``sorted_beams``' own for any other scan).
+        2 pi below and above, for a :attr:`full_turn` scan: an interval across the seam
+        finds its beams on both sides.
         """
         order, ang, _ = self.sorted_beams
-        if not self.full_turn:
-            return order, ang
         half = len(ang) // 2
         return (np.concatenate([order[-half:], order, order[:half]]),
                 np.concatenate([ang[-half:] - 2 * math.pi, ang, ang[:half] + 2 * math.pi]))
