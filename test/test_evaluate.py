@@ -206,3 +206,15 @@ def test_evaluate_refuses_bad_inputs_with_clear_errors(tmp_path, capsys):
         assert err.startswith('extended-tracker: error: ') and fragment in err, err
         assert len(err.strip().splitlines()) == 1
     assert main(['evaluate', str(tmp_path / 'out'), '--truth', str(truth)]) == 0
+
+
+def test_the_readme_results_section_is_what_make_results_writes(tmp_path):
+    """The README's results table and notes, regenerated (`make results`, about 11 s),
+    byte for byte: a change that moves a row without `make results` fails here."""
+    from extended_tracker.evaluate import write_readme_results
+
+    readme = Path(__file__).resolve().parents[1] / 'README.md'
+    copy = tmp_path / 'README.md'
+    copy.write_text(readme.read_text())
+    write_readme_results(copy)
+    assert copy.read_text() == readme.read_text(), 'run `make results` and commit README.md'
