@@ -297,6 +297,35 @@ def test_a_failure_to_build_the_messages_is_counted_and_survived(harness, monkey
     assert len(harness.markers) == len(harness.tracks) - 1 == 4
 
 
+def test_a_node_that_cannot_keep_up_says_so(harness, monkeypatch):
+    """Scans 0.1 s apart, each taking 0.12 s: after ten in a row the node logs and counts
+    falling_behind (in the diagnostics too); at its normal pace it never does."""
+    import extended_tracker.ros.node as node_mod
+
+    data = simulate(tutorial_scene(), 2.5, seed=0)
+    for scan, _ in data[:5]:
+        harness.send(ros_scan(scan))
+    assert harness.node.counts == {}
+    real_step = node_mod.step
+
+    def slow(*args, **kwargs):
+        time.sleep(0.12)
+        return real_step(*args, **kwargs)
+
+    monkeypatch.setattr(node_mod, 'step', slow)
+    for scan, _ in data[5:14]:
+        harness.send(ros_scan(scan))
+    assert harness.node.counts == {}                  # nine slow scans
+    harness.send(ros_scan(data[14][0]))
+    assert harness.node.counts == {'falling_behind': 1}
+    values = {kv.key: kv.value for kv in harness.diagnostics[-1].status[0].values}
+    assert values['count_falling_behind'] == '1'
+    monkeypatch.setattr(node_mod, 'step', real_step)
+    for scan, _ in data[15:]:
+        harness.send(ros_scan(scan))
+    assert harness.node.counts == {'falling_behind': 1}
+
+
 def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
     """A driver that leaves header.stamp zero: each scan is taken (and answered) at the
     node's clock when it arrived, counted as zero_stamp; none is dropped as a repeat."""
@@ -544,10 +573,10 @@ def test_every_event_is_explained_in_the_readme():
     import re
 
     from extended_tracker.pipeline import EVENTS
-    from extended_tracker.ros.node import INTERNAL_ERROR
+    from extended_tracker.ros.node import NODE_EVENTS
 
     text = (ROOT / 'README.md').read_text()
     block = text.split('- **Events**')[1].split('\n- **')[0]
     listed = set(re.findall(r'^  - `(\w+)`(?:, `(\w+)`)?', block, re.M))
     names = {n for pair in listed for n in pair if n}
-    assert names == set(EVENTS) | {INTERNAL_ERROR}
+    assert names == set(EVENTS) | set(NODE_EVENTS)

@@ -14,6 +14,7 @@ calls.
 from __future__ import annotations
 
 import difflib
+import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from extended_tracker_msgs.msg import ExtendedObjectArray
@@ -36,9 +37,14 @@ from ..pipeline import held, PipelineState, reset, step
 from .convert import fill
 
 NODE_NAME = 'extended_tracker'
-# the node's own event, a bug: the pipeline raised on a scan (answered with the previous
-# estimates), or building or publishing its messages did
+# the node's own events. A bug: the pipeline raised on a scan (answered with the previous
+# estimates), or building or publishing its messages did.
 INTERNAL_ERROR = 'internal_error'
+# FALLING_BEHIND_SCANS scans in a row whose callback took longer than the time from the
+# previous scan's stamp to theirs: scans queue up, and the sensor-data QoS drops them
+FALLING_BEHIND = 'falling_behind'
+FALLING_BEHIND_SCANS = 10
+NODE_EVENTS = (INTERNAL_ERROR, FALLING_BEHIND)
 _PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
           'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
           'list': ParameterType.PARAMETER_DOUBLE_ARRAY}
@@ -84,6 +90,8 @@ class TrackerNode(Node):
         self.counts: dict = {}
         self.unknown_parameters = self._check_overrides()
         self.scans = 0
+        self._last_stamp_ns = None
+        self._slow_in_a_row = 0
         reliable = QoSProfile(depth=10)
         self.pub_tracks = self.create_publisher(ExtendedObjectArray, 'tracks', reliable)
         self.pub_markers = self.create_publisher(MarkerArray, 'tracks/markers', reliable)
@@ -146,6 +154,7 @@ class TrackerNode(Node):
 
     # --- the callback ---
     def on_scan(self, msg: LaserScan) -> None:
+        t0 = time.perf_counter()
         # the arrival time stands in for a zero header stamp (event zero_stamp)
         arrival = self.get_clock().now().nanoseconds
         try:
@@ -170,7 +179,24 @@ class TrackerNode(Node):
         except Exception as err:           # an exception out of a callback ends spin
             self._count(INTERNAL_ERROR, f'publishing the estimates failed: {err!r}',
                         error=True)
+        self._check_pace(result.stamp_ns, time.perf_counter() - t0)
         self.pub_diag.publish(self._diagnostics(result))
+
+    def _check_pace(self, stamp_ns: int, took: float) -> None:
+        """Count (and say) FALLING_BEHIND_SCANS scans in a row that took longer than the
+        scanner's period, as the stamps give it: the node is not keeping up."""
+        last, self._last_stamp_ns = self._last_stamp_ns, stamp_ns
+        period = (stamp_ns - last) * 1e-9 if last is not None and stamp_ns > last else None
+        if period is None or took <= period:
+            self._slow_in_a_row = 0
+            return
+        self._slow_in_a_row += 1
+        if self._slow_in_a_row == FALLING_BEHIND_SCANS:
+            self._slow_in_a_row = 0
+            self._count(FALLING_BEHIND, f'{FALLING_BEHIND_SCANS} scans in a row took longer '
+                        f'than the scan period (the last {took * 1e3:.1f} ms against '
+                        f'{period * 1e3:.1f} ms): scans queue up and the sensor-data QoS '
+                        f'drops them')
 
     def _on_reset(self, request, response):
         self.state = reset(self.state, self.cfg)
@@ -233,4 +259,4 @@ def main(args=None) -> None:
         rclpy.try_shutdown()
 
 
-__all__ = ['TrackerNode', 'main', 'parameter_descriptors']
+__all__ = ['TrackerNode', 'main', 'parameter_descriptors', 'NODE_EVENTS']
