@@ -236,6 +236,20 @@ def test_diagnostics_give_each_scan_its_figures_and_the_event_counts(harness):
     assert {kv.key: kv.value for kv in st.values}['count_malformed_scan'] == '2'
 
 
+def fail_on_call(monkeypatch, module, name, n, error):
+    """``module.name`` raises ``error`` on its ``n``-th call; the others go through."""
+    real = getattr(module, name)
+    calls = {'n': 0}
+
+    def failing_once(*args, **kwargs):
+        calls['n'] += 1
+        if calls['n'] == n:
+            raise error
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(module, name, failing_once)
+
+
 def test_a_pipeline_failure_is_answered_counted_and_survived(harness, monkeypatch):
     """A bug that makes step raise on one scan: the node stays up, publishes the previous
     estimates for that scan (its stamp, the tracked frame), with diagnostics at ERROR,
@@ -243,16 +257,7 @@ def test_a_pipeline_failure_is_answered_counted_and_survived(harness, monkeypatc
     import extended_tracker.ros.node as node_mod
     from diagnostic_msgs.msg import DiagnosticStatus
 
-    real_step = node_mod.step
-    calls = {'n': 0}
-
-    def failing_once(*args, **kwargs):
-        calls['n'] += 1
-        if calls['n'] == 15:
-            raise RuntimeError('a bug')
-        return real_step(*args, **kwargs)
-
-    monkeypatch.setattr(node_mod, 'step', failing_once)
+    fail_on_call(monkeypatch, node_mod, 'step', 15, RuntimeError('a bug'))
     data = simulate(tutorial_scene(), 2.0, seed=0)
     replies = [harness.send(ros_scan(scan)) for scan, _ in data]
     assert len(replies) == harness.node.scans == 20
@@ -274,16 +279,7 @@ def test_a_failure_to_build_the_messages_is_counted_and_survived(harness, monkey
     go out, and the next scan is answered in full."""
     import extended_tracker.ros.node as node_mod
 
-    real = node_mod.markers_data
-    calls = {'n': 0}
-
-    def failing_once(*args, **kwargs):
-        calls['n'] += 1
-        if calls['n'] == 3:
-            raise ValueError('a bug')
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(node_mod, 'markers_data', failing_once)
+    fail_on_call(monkeypatch, node_mod, 'markers_data', 3, ValueError('a bug'))
     data = simulate(tutorial_scene(), 0.5, seed=0)
     for scan, _ in data[:2]:
         harness.send(ros_scan(scan))
