@@ -44,8 +44,8 @@ def _noise(sigma_range: float) -> np.ndarray:
     return sigma_range ** 2 * np.eye(2)
 
 
-# the Poisson clutter cardinality pmf (log): asked for on every scan with the same few
-# (rate, size) arguments
+# the Poisson clutter cardinality pmf (log): asked for on every scan with the clutter rate
+# and the scan's number of detections, which repeat
 _clutter_log_pmf = cached_tables(maxsize=256)(poisson_log_pmf)
 
 
@@ -282,14 +282,11 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                  [_birth_log_miss_factor(cfg)]])
     cell_log_c = -stats.n * np.log(area) if stats.log_c is None else stats.log_c
     if mc.mode == 'cphd':
-        # most detections a partition can take as clutter: its cells, a lonely one counted
-        # return by return
-        k_most = max(map(len, pset.partitions), default=0)
-        if lonely is not None:
-            k_most += int(np.add.reduce(stats.n[lonely] - 1))
+        # the clutter pmf up to every detection: no partition can take more as clutter
+        # (cphd_update reads the entries up to the most a partition takes)
+        clutter_pmf = _clutter_log_pmf(mc.clutter_rate, len(points) + 1)
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
-                          state.log_card, _clutter_log_pmf(mc.clutter_rate, k_most + 1),
-                          lonely)
+                          state.log_card, clutter_pmf, lonely)
     else:
         out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
                          mc.clutter_rate, mc.n_max, lonely)
