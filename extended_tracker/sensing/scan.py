@@ -154,7 +154,7 @@ class ScanPoints:
         a scan)."""
         return self.ranges[self.sorted_beams[0]]
 
-    @property
+    @cached_property
     def full_turn(self) -> bool:
         """The beams go all the way round (a 360 degree scanner): no edge of the field of
         view, the last beam next to the first."""
