@@ -256,7 +256,21 @@ def main(args=None) -> None:
     finally:
         if node is not None:
             node.destroy_node()
+        _shutdown()
+
+
+def _shutdown() -> None:
+    """
+    Shut the context down unless a signal already has. rclpy's SIGINT/SIGTERM handler
+    shuts it down from its own thread, and ``try_shutdown`` checks and then shuts down:
+    a signal between the two made it raise ``rcl_shutdown already called`` and the
+    process exit 1 (2 of 40 SIGINTs in a loop).
+    """
+    try:
         rclpy.try_shutdown()
+    except Exception:
+        if rclpy.ok():
+            raise
 
 
 __all__ = ['TrackerNode', 'main', 'parameter_descriptors', 'NODE_EVENTS']
