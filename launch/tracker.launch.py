@@ -7,15 +7,18 @@ then the preset's changes (``config/<preset>.yaml``) when one is named, and the 
 remapped to ``scan``. ``use_sim_time`` for a bag played with ``ros2 bag play --clock``.
 ``rviz:=true`` also starts RViz2 with the installed ``rviz/tracker.rviz``, its scan display
 on ``scan`` and its fixed frame ``rviz_frame`` (the scan's ``frame_id`` when no TF is
-published).
+published); that config is a copy written to a temporary directory, removed when the
+launch shuts down.
 """
 
 import os
+import shutil
 import tempfile
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnShutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -54,6 +57,14 @@ def rviz_config(share: str, scan_topic: str, out_dir: str) -> str:
     return path
 
 
+def _remove_on_shutdown(path: str):
+    """An action that deletes ``path`` (a directory this launch made) when the launch ends."""
+    def remove(event, context):
+        shutil.rmtree(path, ignore_errors=True)
+
+    return RegisterEventHandler(OnShutdown(on_shutdown=remove))
+
+
 def _node(context, *args, **kwargs):
     share = get_package_share_directory(PACKAGE)
     files = parameter_files(share, LaunchConfiguration('params_file').perform(context),
@@ -64,11 +75,13 @@ def _node(context, *args, **kwargs):
                   output='screen', parameters=files + [{'use_sim_time': sim_time}],
                   remappings=[('scan', scan)])]
     if LaunchConfiguration('rviz').perform(context).lower() == 'true':
-        config = rviz_config(share, scan, tempfile.mkdtemp(prefix='extended_tracker_'))
+        out_dir = tempfile.mkdtemp(prefix='extended_tracker_rviz_')
+        config = rviz_config(share, scan, out_dir)
         frame = LaunchConfiguration('rviz_frame').perform(context)
         nodes.append(Node(package='rviz2', executable='rviz2', name='rviz2',
                           arguments=['-d', config, '-f', frame],
                           parameters=[{'use_sim_time': sim_time}]))
+        nodes.append(_remove_on_shutdown(out_dir))
     return nodes
 
 

@@ -30,10 +30,13 @@ class _Config(_Recorded):
 
 def _stand_ins():
     mods = {name: types.ModuleType(name) for name in (
-        'launch', 'launch.actions', 'launch.substitutions', 'launch_ros', 'launch_ros.actions')}
+        'launch', 'launch.actions', 'launch.event_handlers', 'launch.substitutions',
+        'launch_ros', 'launch_ros.actions')}
     mods['launch'].LaunchDescription = _Recorded
     mods['launch.actions'].DeclareLaunchArgument = _Recorded
     mods['launch.actions'].OpaqueFunction = _Recorded
+    mods['launch.actions'].RegisterEventHandler = _Recorded
+    mods['launch.event_handlers'].OnShutdown = _Recorded
     mods['launch.substitutions'].LaunchConfiguration = _Config
     mods['launch_ros.actions'].Node = _Recorded
     return mods
@@ -104,8 +107,8 @@ def test_rviz_starts_on_request_with_the_scan_topic_and_fixed_frame(launch_modul
     with open(installed) as f:
         original = yaml.safe_load(f)
     for scan, topic in (('/front/scan', '/front/scan'), ('scan', '/scan')):
-        tracker, rviz = make_node(dict(declared, scan=scan, rviz='True', rviz_frame='base_scan',
-                                       use_sim_time='true'))
+        tracker, rviz, cleanup = make_node(dict(declared, scan=scan, rviz='True',
+                                                rviz_frame='base_scan', use_sim_time='true'))
         assert tracker.kwargs['remappings'] == [('scan', scan)]
         kw = rviz.kwargs
         assert (kw['package'], kw['executable']) == ('rviz2', 'rviz2')
@@ -120,3 +123,8 @@ def test_rviz_starts_on_request_with_the_scan_topic_and_fixed_frame(launch_modul
         assert laser['Topic']['Value'] == topic
         laser['Topic']['Value'] = '/scan'
         assert written == original
+        # the copy's directory goes when the launch shuts down, not one left per launch
+        (handler,) = cleanup.args
+        assert Path(path).parent.is_dir()
+        handler.kwargs['on_shutdown'](object(), {})
+        assert not Path(path).parent.exists()
