@@ -144,9 +144,37 @@ def _build_field(store, kind, detail, value, np):
     return [_build_field(store, subkind, subdetail, v, np) for v in items]
 
 
+class _Rosbag2Folder(type(Path())):
+    """
+    A ROS 2 bag folder's path that never reads as a ROS 1 file: rosbags' AnyReader takes
+    every path ending in ``.bag`` for a ROS 1 bag, and ``ros2 bag record -o run.bag`` (or
+    ``extended-tracker simulate run.bag``) makes a folder of that name.
+    """
+
+    @property
+    def suffix(self) -> str:
+        return ''
+
+
+def _open_reader(p: Path):
+    """
+    An open rosbags AnyReader on the bag at ``p``. A ROS 2 bag that stores no message
+    definitions (sqlite3 bags recorded before Iron, e.g. on Humble) is read with the
+    standard Jazzy types; LaserScan has not changed between the distributions.
+    """
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import get_typestore, Stores
+
+    reader = AnyReader([_Rosbag2Folder(p) if p.is_dir() else p],
+                       default_typestore=get_typestore(Stores.ROS2_JAZZY))
+    reader.open()
+    return reader
+
+
 def open_scans(path, scan_topic: str | None = None):
     """
-    Open a bag (ROS 2 folder in sqlite3 or MCAP, or a ROS 1 ``.bag``) for its LaserScans.
+    Open a bag (ROS 2 folder in sqlite3 or MCAP, whatever its name, or a ROS 1 ``.bag``)
+    for its LaserScans.
 
     Returns
     -------
@@ -160,16 +188,11 @@ def open_scans(path, scan_topic: str | None = None):
         LaserScan topics and none chosen (the message lists them).
 
     """
-    from pathlib import Path
-
-    from rosbags.highlevel import AnyReader
-
     p = Path(path)
     if not p.exists():
         raise BagError(f'input bag {p} does not exist')
     try:
-        reader = AnyReader([p])
-        reader.open()
+        reader = _open_reader(p)
     except Exception as err:  # rosbags raises several unrelated types for broken bags
         msg = f'cannot read bag {p}: {type(err).__name__}: {err}'
         raise BagError(msg) from err

@@ -109,6 +109,63 @@ def test_ros1_input(tmp_path):
     assert_scans_copied(out['/scan'], sim_scans())
 
 
+def strip_definitions(folder):
+    """Make a sqlite3 bag written here look recorded on Humble: metadata version 5, no
+    message definitions or type hashes (rosbag2 stored none before Iron)."""
+    import re
+    import sqlite3
+
+    (db_path,) = Path(folder).glob('*.db3')
+    db = sqlite3.connect(db_path)
+    db.executescript("""
+        DROP TABLE message_definitions;
+        DROP TABLE metadata;
+        CREATE TABLE old_topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+                                serialization_format TEXT NOT NULL,
+                                offered_qos_profiles TEXT NOT NULL);
+        INSERT INTO old_topics SELECT id, name, type, serialization_format,
+                                      offered_qos_profiles FROM topics;
+        DROP TABLE topics;
+        ALTER TABLE old_topics RENAME TO topics;
+        UPDATE schema SET schema_version = 3, ros_distro = 'humble';
+    """)
+    db.commit()
+    db.close()
+    meta = Path(folder) / 'metadata.yaml'
+    text = re.sub(r'\n\s*type_description_hash:\s*RIHS01_\w+', '', meta.read_text())
+    text = text.replace('version: 9', 'version: 5').replace('  custom_data: null\n', '')
+    assert 'RIHS01' not in text and 'version: 5' in text
+    meta.write_text(text)
+
+
+def test_a_bag_without_message_definitions_replays_as_with_them(tmp_path):
+    """A Humble sqlite3 bag stores no definitions; its scans read as the Jazzy type."""
+    write_ros2(tmp_path / 'jazzy')
+    write_ros2(tmp_path / 'humble')
+    strip_definitions(tmp_path / 'humble')
+    a = replay(tmp_path / 'jazzy', tmp_path / 'out_jazzy', CFG, progress=False)
+    b = replay(tmp_path / 'humble', tmp_path / 'out_humble', CFG, progress=False)
+    assert b.scans == a.scans == 20 and b.distinct_ids == a.distinct_ids >= 3
+    out_a, out_b = read_output(tmp_path / 'out_jazzy'), read_output(tmp_path / 'out_humble')
+    assert_scans_copied(out_b['/scan'], sim_scans())
+    for (ta, ma), (tb, mb) in zip(out_a['/tracks'], out_b['/tracks']):
+        assert ta == tb
+        assert [o.id for o in ma.objects] == [o.id for o in mb.objects]
+        assert [(o.position.x, o.position.y) for o in ma.objects] == [
+            (o.position.x, o.position.y) for o in mb.objects]
+
+
+def test_a_ros2_folder_named_like_a_ros1_file_replays(tmp_path):
+    """`ros2 bag record -o run.bag` makes a folder; the suffix does not make it ROS 1."""
+    write_ros2(tmp_path / 'run.bag', storage='mcap')
+    s = replay(tmp_path / 'run.bag', tmp_path / 'out.bag', CFG, progress=False)
+    assert s.scans == 20 and s.topic == '/scan'
+    assert_scans_copied(read_output(tmp_path / 'out.bag')['/scan'], sim_scans())
+    # and the output, a ROS 2 folder named out.bag, replays in its turn
+    again = replay(tmp_path / 'out.bag', tmp_path / 'again', CFG, progress=False)
+    assert again.scans == 20
+
+
 def test_bundled_bag_replays():
     import tempfile
 
