@@ -8,6 +8,7 @@ its field of view.
 
 from __future__ import annotations
 
+from array import array
 import math
 
 import matplotlib
@@ -26,10 +27,10 @@ def id_colour(label: int):
     return c['r'], c['g'], c['b']
 
 
-def _outline(ax, estimates, j, colour, rectangle=False, lw=1.5, alpha=1.0):
-    """Object ``j``'s outline, the same polygon as its RViz marker."""
-    major, minor, yaw = estimates.axes()
-    xy = outline_xy(estimates.m[j, :2], major[j], minor[j], yaw[j], rectangle)
+def _outline(ax, row, colour, lw=1.5, alpha=1.0):
+    """An object's outline at one scan (a RunSketch track row), as its RViz marker."""
+    x, y, major, minor, yaw, rectangle = row.tolist()
+    xy = outline_xy(np.array([x, y]), major, minor, yaw, bool(rectangle))
     ax.add_patch(Polygon(xy, closed=True, fill=False, ec=colour, lw=lw, alpha=alpha))
 
 
@@ -39,28 +40,96 @@ def _sensor(ax, angle_lo, angle_hi, range_max):
     ax.plot([0], [0], marker='^', color='k', ms=8, zorder=5)
 
 
+class RunSketch:
+    """
+    What :func:`plot_run` draws of a run, gathered scan by scan in bounded memory.
+
+    Keeps each id's track (centre and outline per scan: six floats) and a sample of the
+    detection and background clouds: every ``stride``-th scan's, the stride doubling
+    whenever the sample passes ``2 * max_points`` points, each scan counted as
+    ``SCAN_COST`` points more (its entry and two array headers take about 350 bytes, as
+    much as 22 points). A bag of hours would otherwise keep every return of every scan
+    until the end. Runs under the budget keep all.
+    """
+
+    SCAN_COST = 24
+
+    def __init__(self, is_rectangle=None, max_points: int = 200_000):
+        self.is_rectangle = is_rectangle
+        self.max_points = max_points
+        self.scans = 0
+        self.tracks: dict = {}            # label -> x, y, major, minor, yaw, rectangle, ...
+        self.stride = 1
+        self._clouds: list = []           # (scan index, detections, background returns)
+        self._kept = 0
+
+    def add(self, result) -> None:
+        """Take one :class:`StepResult`."""
+        e = result.estimates
+        if len(e):
+            major, minor, yaw = e.axes()
+            rect = (self.is_rectangle(e) if self.is_rectangle is not None
+                    else np.zeros(len(e), dtype=bool))
+            rows = zip(e.label.tolist(), e.m[:, :2].tolist(), major.tolist(), minor.tolist(),
+                       yaw.tolist(), rect.tolist())
+            for lab, (x, y), a, b, w, r in rows:
+                track = self.tracks.get(lab)
+                if track is None:
+                    track = self.tracks[lab] = array('d')
+                track.extend((x, y, a, b, w, float(r)))
+        k, self.scans = self.scans, self.scans + 1
+        pts, bg = result.points, result.background_points
+        if k % self.stride or not (len(pts) or len(bg)):
+            return
+        self._clouds.append((k, np.array(pts), np.array(bg)))
+        self._kept += len(pts) + len(bg) + self.SCAN_COST
+        while self._kept > 2 * self.max_points and len(self._clouds) > 1:
+            self.stride *= 2
+            self._clouds = [c for c in self._clouds if c[0] % self.stride == 0]
+            self._kept = sum(len(c[1]) + len(c[2]) + self.SCAN_COST for c in self._clouds)
+
+    def track(self, label) -> np.ndarray:
+        """Label's rows ``(x, y, major, minor, yaw, rectangle)``, one per scan it was in."""
+        return np.array(self.tracks[label], dtype=np.float64).reshape(-1, 6)
+
+    def points(self) -> list:
+        """The sampled scans' detection arrays (non-empty ones)."""
+        return [c[1] for c in self._clouds if len(c[1])]
+
+    def background(self) -> list:
+        """The sampled scans' background arrays (non-empty ones)."""
+        return [c[2] for c in self._clouds if len(c[2])]
+
+
 def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=200_000,
              min_scans=10):
     """
-    Draw a sequence of :class:`StepResult` into a PNG.
+    Draw a run into a PNG.
 
     Parameters
     ----------
-    results : list of StepResult
+    results : list of StepResult, or a RunSketch of them
     path : str or Path
     fov : (angle_lo, angle_hi, range_max), optional
         Field of view to shade.
     is_rectangle : callable, optional
-        ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes.
+        ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes (given to
+        the sketch when ``results`` is one).
+    max_points : int
+        At most this many detections and as many background returns are drawn.
     min_scans : int
         Ids reported in fewer scans are drawn as faint grey traces without outlines.
 
     """
+    sketch = results
+    if not isinstance(sketch, RunSketch):
+        sketch = RunSketch(is_rectangle, max_points)
+        for r in results:
+            sketch.add(r)
     fig, ax = plt.subplots(figsize=(10, 8), dpi=110)
     if fov is not None:
         _sensor(ax, *fov)
-    pts = [r.points for r in results if len(r.points)]
-    bg = [r.background_points for r in results if len(r.background_points)]
+    pts, bg = sketch.points(), sketch.background()
     if bg:
         b = np.vstack(bg)
         step = max(1, len(b) // max_points)
@@ -70,15 +139,11 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         step = max(1, len(p) // max_points)
         ax.scatter(p[::step, 0], p[::step, 1], s=0.6, c='0.45', lw=0, alpha=0.5,
                    label='detections')
-    tracks = {}
-    for r in results:
-        e = r.estimates
-        for j, lab in enumerate(e.label.tolist()):
-            tracks.setdefault(lab, []).append((e.m[j, :2], r, j))
     short = 0
-    for lab, seq in sorted(tracks.items()):
+    for lab in sorted(sketch.tracks):
+        seq = sketch.track(lab)
         col = id_colour(lab)
-        xy = np.array([s[0] for s in seq])
+        xy = seq[:, :2]
         if len(seq) < min_scans:
             # short-lived ids: a faint trace only, so long tracks stay readable
             short += 1
@@ -87,31 +152,26 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         ax.plot(xy[:, 0], xy[:, 1], '-', color=col, lw=1.2, alpha=0.9)
         # a few outlines along the way, the last one bold with the id
         every = max(1, len(seq) // 6)
-        for _, r, j in seq[::every]:
-            rect = bool(is_rectangle(r.estimates)[j]) if is_rectangle else False
-            _outline(ax, r.estimates, j, col, rectangle=rect, lw=0.8, alpha=0.5)
-        m, r, j = seq[-1]
-        rect = bool(is_rectangle(r.estimates)[j]) if is_rectangle else False
-        _outline(ax, r.estimates, j, col, rectangle=rect, lw=2.0)
-        ax.annotate(str(lab), m, xytext=(4, 4), textcoords='offset points', color=col,
+        for s in seq[::every]:
+            _outline(ax, s, col, lw=0.8, alpha=0.5)
+        _outline(ax, seq[-1], col, lw=2.0)
+        ax.annotate(str(lab), xy[-1], xytext=(4, 4), textcoords='offset points', color=col,
                     fontsize=9, weight='bold')
     ax.set_aspect('equal')
     ax.set_xlabel('x (m)')
     ax.set_ylabel('y (m)')
-    n_scans = len(results)
-    ax.set_title((title or f'{n_scans} scans, {len(tracks)} ids')
+    ax.set_title((title or f'{sketch.scans} scans, {len(sketch.tracks)} ids')
                  + f'\n(grey: {short} ids reported in fewer than {min_scans} scans)')
     if pts or bg:
         ax.legend(loc='upper right', fontsize=8, markerscale=10)
-    _fit(ax, results, fov)
+    _fit(ax, pts + [sketch.track(lab)[:, :2] for lab in sketch.tracks], fov)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
-def _fit(ax, results, fov):
-    chunks = [r.points for r in results if len(r.points)]
-    chunks += [r.estimates.m[:, :2] for r in results if len(r.estimates)]
+def _fit(ax, chunks, fov):
+    chunks = [c for c in chunks if len(c)]
     if not chunks:
         return
     allp = np.vstack(chunks + [np.zeros((1, 2))])

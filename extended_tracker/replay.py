@@ -134,11 +134,16 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
         shutil.rmtree(tmp)
     out.parent.mkdir(parents=True, exist_ok=True)
     summary = ReplaySummary(topic=topic, output=str(out))
-    times, counts, results = [], [], []
+    times, counts = [], []
     ids, first_pos, travel = set(), {}, {}
     bar = _Progress(total) if progress else None
     prev_ids: set = set()
     fov = None
+    sketch = None
+    if plot_path:
+        from .plotting import RunSketch
+
+        sketch = RunSketch(lambda e: shapes(e, cfg.extraction) == SHAPE_RECTANGLE)
     try:
         with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
             c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
@@ -167,8 +172,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
                     first_pos.setdefault(lab, m.copy())
                     travel[lab] = max(travel.get(lab, 0.0),
                                       float(np.linalg.norm(m - first_pos[lab])))
-                if plot_path:
-                    results.append(res)
+                if sketch is not None:
+                    sketch.add(res)
                 if bar:
                     bar.update(k + 1)
         os.replace(tmp, out)
@@ -187,12 +192,11 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
         summary.p99_ms = float(np.percentile(ms, 99))
         summary.mean_count = float(np.mean(counts))
         summary.max_count = int(np.max(counts))
-    if plot_path:
+    if sketch is not None:
         from .plotting import plot_run
 
-        plot_run(results, plot_path, title=f'{Path(input_path).name} {topic}: '
-                 f'{summary.scans} scans, {summary.distinct_ids} ids', fov=fov,
-                 is_rectangle=lambda e: shapes(e, cfg.extraction) == SHAPE_RECTANGLE)
+        plot_run(sketch, plot_path, title=f'{Path(input_path).name} {topic}: '
+                 f'{summary.scans} scans, {summary.distinct_ids} ids', fov=fov)
         summary.plot = str(plot_path)
     return summary
 

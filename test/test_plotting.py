@@ -1,0 +1,102 @@
+"""The run picture's sketch: every scan's tracks, a bounded and even sample of the clouds."""
+
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from extended_tracker.config import TrackerConfig
+from extended_tracker.pipeline import PipelineState, step
+from extended_tracker.plotting import plot_run, RunSketch
+from extended_tracker.sim.laser import demo_scene, simulate
+
+CFG = TrackerConfig()
+
+
+@pytest.fixture(scope='module')
+def results():
+    """Thirty scans of the demo scene: walkers tracked, the walls learned as background."""
+    state, out = PipelineState.initial(CFG), []
+    for scan, _ in simulate(demo_scene(), 3.0, seed=0):
+        state, res = step(state, scan, CFG)
+        out.append(res)
+    assert sum(len(r.estimates) for r in out) > 0
+    assert sum(len(r.background_points) for r in out) > 0 < sum(len(r.points) for r in out)
+    return out
+
+
+def test_under_the_budget_the_sketch_keeps_every_scan_and_every_track_row(results):
+    sketch = RunSketch(max_points=10**6)
+    for r in results:
+        sketch.add(r)
+    assert sketch.scans == len(results) and sketch.stride == 1
+    want_pts = [r.points for r in results if len(r.points)]
+    want_bg = [r.background_points for r in results if len(r.background_points)]
+    assert len(sketch.points()) == len(want_pts) and len(sketch.background()) == len(want_bg)
+    for got, want in zip(sketch.points() + sketch.background(), want_pts + want_bg):
+        np.testing.assert_array_equal(got, want)
+    # the track rows are the estimates' centres and outline axes, scan by scan
+    rows = {}
+    for r in results:
+        e = r.estimates
+        major, minor, yaw = e.axes()
+        for j, lab in enumerate(e.label.tolist()):
+            rows.setdefault(lab, []).append([*e.m[j, :2], major[j], minor[j], yaw[j], 0.0])
+    assert sorted(sketch.tracks) == sorted(rows)
+    for lab, want in rows.items():
+        np.testing.assert_array_equal(sketch.track(lab), np.array(want))
+
+
+def test_the_cloud_sample_stays_in_budget_and_evenly_spread(results):
+    """Over a long run the sample thins to every stride-th scan, the stride a power of two,
+    while the tracks keep every scan."""
+    budget = 2_000
+    sketch = RunSketch(max_points=budget)
+    n = 50 * len(results)                                    # 1,500 scans
+    for k in range(n):
+        sketch.add(results[k % len(results)])
+    scans = [c[0] for c in sketch._clouds]
+    s = sketch.stride
+    assert s > 1 and s & (s - 1) == 0
+    assert all(k % s == 0 for k in scans)
+    # every stride-th scan with returns is there: the sample covers the whole run
+    with_returns = [k for k in range(0, n, s) if len(results[k % len(results)].points)
+                    or len(results[k % len(results)].background_points)]
+    assert scans == with_returns and scans[-1] >= n - s - len(results)
+    kept = sum(len(c[1]) + len(c[2]) + RunSketch.SCAN_COST for c in sketch._clouds)
+    assert kept <= 2 * budget
+    per_pass = sum(len(r.estimates) for r in results)
+    assert sum(len(sketch.track(lab)) for lab in sketch.tracks) == 50 * per_pass
+
+
+def test_a_long_run_holds_bounded_memory_for_the_clouds(results):
+    """Memory of a sketch over 20,000 scans: the clouds stay within the budget; what grows
+    is the tracks' six floats per object and scan."""
+    budget = 20_000
+    sketch = RunSketch(max_points=budget)
+    objects = 0
+    tracemalloc.start()
+    try:
+        for k in range(20_000):
+            r = results[k % len(results)]
+            sketch.add(r)
+            objects += len(r.estimates)
+        used = tracemalloc.get_traced_memory()[0]
+    finally:
+        tracemalloc.stop()
+    clouds = 2 * budget * 16 + 400 * len(sketch._clouds) + 100_000     # points, headers
+    tracks = objects * 6 * 8 * 1.2 + 10_000                            # array growth slack
+    assert used < clouds + tracks, (used, clouds, tracks)
+    # without the sample every scan's returns would be kept: far above that bound
+    every_scan = sum(16 * (len(r.points) + len(r.background_points)) for r in results) * 1000
+    assert every_scan > 3 * (clouds + tracks)
+
+
+def test_plot_run_draws_a_list_or_a_sketch_alike(results, tmp_path):
+    sketch = RunSketch()
+    for r in results:
+        sketch.add(r)
+    plot_run(results, tmp_path / 'list.png', title='t')
+    plot_run(sketch, tmp_path / 'sketch.png', title='t')
+    a, b = (tmp_path / 'list.png').read_bytes(), (tmp_path / 'sketch.png').read_bytes()
+    assert len(a) > 10_000 and a == b
