@@ -191,6 +191,10 @@ def open_scans(path, scan_topic: str | None = None):
     p = Path(path)
     if not p.exists():
         raise BagError(f'input bag {p} does not exist')
+    if p.is_file() and p.suffix != '.bag' and (p.parent / 'metadata.yaml').is_file():
+        # a storage file of a ROS 2 bag: read the folder, whose metadata says how the files
+        # are compressed and which others belong to the recording (split bags)
+        p = p.parent
     try:
         reader = _open_reader(p)
     except Exception as err:  # rosbags raises several unrelated types for broken bags

@@ -164,6 +164,18 @@ def test_compressed_bags_replay(tmp_path, kind):
     assert_scans_copied(read_output(tmp_path / 'out')['/scan'], sim_scans())
 
 
+@pytest.mark.parametrize('compression', [None, 'file', 'message'])
+def test_a_ros2_bags_storage_file_reads_as_its_folder(tmp_path, compression):
+    """Given the .mcap (or .mcap.zstd) inside a bag folder, the replay reads the folder:
+    its metadata says how the messages are compressed (read alone, each message of a
+    message-compressed bag failed to decode)."""
+    write_ros2(tmp_path / 'in', storage='mcap', compression=compression)
+    (storage_file,) = [f for f in (tmp_path / 'in').iterdir() if f.name != 'metadata.yaml']
+    s = replay(storage_file, tmp_path / 'out', CFG, progress=False)
+    assert s.scans == 20
+    assert_scans_copied(read_output(tmp_path / 'out')['/scan'], sim_scans())
+
+
 def test_a_bag_without_message_definitions_replays_as_with_them(tmp_path):
     """A Humble sqlite3 bag stores no definitions; its scans read as the Jazzy type."""
     write_ros2(tmp_path / 'jazzy')
