@@ -3,7 +3,7 @@ Pictures of a run (an edge module: it adds matplotlib, Agg backend, no display n
 
 :func:`plot_run` draws a whole sequence: detections faint, background returns fainter,
 each id's trajectory in its own colour with its last outline and label, the sensor and
-its field of view.
+its field of view. A :class:`RunSketch` gathers what it draws while a replay streams.
 """
 
 from __future__ import annotations
@@ -113,10 +113,11 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
     fov : (angle_lo, angle_hi, range_max), optional
         Field of view to shade.
     is_rectangle : callable, optional
-        ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes (given to
-        the sketch when ``results`` is one).
+        ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes. Unused
+        when ``results`` is a RunSketch, which applied its own while gathering.
     max_points : int
-        At most this many detections and as many background returns are drawn.
+        At most this many detections and as many background returns are drawn (and the
+        sketch's budget when ``results`` is a list).
     min_scans : int
         Ids reported in fewer scans are drawn as faint grey traces without outlines.
 
@@ -164,13 +165,15 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
                  + f'\n(grey: {short} ids reported in fewer than {min_scans} scans)')
     if pts or bg:
         ax.legend(loc='upper right', fontsize=8, markerscale=10)
-    _fit(ax, pts + [sketch.track(lab)[:, :2] for lab in sketch.tracks], fov)
+    _fit(ax, pts + [sketch.track(lab)[:, :2] for lab in sketch.tracks])
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
-def _fit(ax, chunks, fov):
+def _fit(ax, chunks):
+    """Axis limits around the points and track centres (0.5 and 99.5 percentiles, 1 m
+    margin), the sensor at the origin kept in view."""
     chunks = [c for c in chunks if len(c)]
     if not chunks:
         return
