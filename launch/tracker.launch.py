@@ -8,7 +8,9 @@ remapped to ``scan``. ``use_sim_time`` for a bag played with ``ros2 bag play --c
 ``rviz:=true`` also starts RViz2 with the installed ``rviz/tracker.rviz``, its scan display
 on ``scan`` and its fixed frame ``rviz_frame`` (the scan's ``frame_id`` when no TF is
 published); that config is a copy written to a temporary directory, removed when the
-launch shuts down.
+launch shuts down. Included under a pushed namespace (``PushRosNamespace``), the node runs
+in it, and the RViz displays follow: a relative ``scan`` and the node's marker topic are
+taken in that namespace.
 """
 
 import os
@@ -23,6 +25,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 PACKAGE = 'extended_tracker'
+NODE_NAME = 'extended_tracker'
 
 
 def parameter_files(share: str, params_file: str, preset: str) -> list:
@@ -36,21 +39,37 @@ def parameter_files(share: str, params_file: str, preset: str) -> list:
     return files
 
 
-def rviz_config(share: str, scan_topic: str, out_dir: str) -> str:
+MARKERS_TOPIC = 'tracks/markers'       # the node's marker topic, relative to its namespace
+
+
+def resolve(name: str, namespace: str) -> str:
     """
-    The installed RViz config with its LaserScan display on ``scan_topic`` (a relative
-    name is taken from the root namespace, as the node's remapping is), written to
-    ``out_dir``; returns its path.
+    ``name`` as the tracker node in ``namespace`` resolves it: absolute names stay,
+    relative ones go into the namespace, ``~`` is the node's own.
+    """
+    if name.startswith('~'):
+        name = NODE_NAME + name[1:]
+    if name.startswith('/'):
+        return name
+    ns = namespace.strip('/')
+    return '/' + (ns + '/' if ns else '') + name
+
+
+def rviz_config(share: str, scan_topic: str, out_dir: str, namespace: str = '') -> str:
+    """
+    The installed RViz config with its LaserScan display on ``scan_topic`` and its marker
+    display on the node's markers, both as a node in ``namespace`` resolves them (the
+    root namespace by default), written to ``out_dir``; returns its path.
     """
     import yaml
 
     with open(os.path.join(share, 'rviz', 'tracker.rviz')) as f:
         config = yaml.safe_load(f)
-    topic = scan_topic if scan_topic.startswith('/') else '/' + scan_topic
-    scans = [d for d in config['Visualization Manager']['Displays']
-             if d['Class'] == 'rviz_default_plugins/LaserScan']
-    for display in scans:
-        display['Topic']['Value'] = topic
+    topics = {'rviz_default_plugins/LaserScan': resolve(scan_topic, namespace),
+              'rviz_default_plugins/MarkerArray': resolve(MARKERS_TOPIC, namespace)}
+    for display in config['Visualization Manager']['Displays']:
+        if display['Class'] in topics:
+            display['Topic']['Value'] = topics[display['Class']]
     path = os.path.join(out_dir, 'extended_tracker.rviz')
     with open(path, 'w') as f:
         yaml.safe_dump(config, f, sort_keys=False)
@@ -71,12 +90,14 @@ def _node(context, *args, **kwargs):
                             LaunchConfiguration('preset').perform(context))
     sim_time = LaunchConfiguration('use_sim_time').perform(context).lower() == 'true'
     scan = LaunchConfiguration('scan').perform(context)
-    nodes = [Node(package=PACKAGE, executable='tracker_node', name='extended_tracker',
+    nodes = [Node(package=PACKAGE, executable='tracker_node', name=NODE_NAME,
                   output='screen', parameters=files + [{'use_sim_time': sim_time}],
                   remappings=[('scan', scan)])]
     if LaunchConfiguration('rviz').perform(context).lower() == 'true':
         out_dir = tempfile.mkdtemp(prefix='extended_tracker_rviz_')
-        config = rviz_config(share, scan, out_dir)
+        # a namespace pushed around this launch (PushRosNamespace) puts the node in it
+        namespace = context.launch_configurations.get('ros_namespace') or ''
+        config = rviz_config(share, scan, out_dir, namespace)
         frame = LaunchConfiguration('rviz_frame').perform(context)
         nodes.append(Node(package='rviz2', executable='rviz2', name='rviz2',
                           arguments=['-d', config, '-f', frame],

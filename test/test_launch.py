@@ -25,7 +25,15 @@ class _Recorded:
 
 class _Config(_Recorded):
     def perform(self, context):
-        return context[self.args[0]]
+        return context.launch_configurations[self.args[0]]
+
+
+class _Context:
+    """Stands in for a LaunchContext: the launch configurations (arguments, and the
+    namespace a PushRosNamespace around the include sets)."""
+
+    def __init__(self, configurations: dict):
+        self.launch_configurations = dict(configurations)
 
 
 def _stand_ins():
@@ -63,7 +71,8 @@ def launch_module(monkeypatch):
 def _args(ld):
     actions = ld.args[0]
     declared = {a.args[0]: a.kwargs['default_value'] for a in actions[:-1]}
-    return declared, actions[-1].kwargs['function']
+    function = actions[-1].kwargs['function']
+    return declared, lambda configurations: function(_Context(configurations))
 
 
 def test_node_gets_the_installed_parameters_and_the_remapped_scan(launch_module):
@@ -128,3 +137,41 @@ def test_rviz_starts_on_request_with_the_scan_topic_and_fixed_frame(launch_modul
         assert Path(path).parent.is_dir()
         handler.kwargs['on_shutdown'](object(), {})
         assert not Path(path).parent.exists()
+
+
+@pytest.mark.parametrize('namespace', ['', '/robot1', 'robot1/left'])
+def test_rviz_shows_the_node_s_topics_under_a_pushed_namespace(launch_module, namespace):
+    """Included under PushRosNamespace, RViz's scan and marker displays are the topics the
+    node itself resolves there (the node, started with the same namespace and remapping,
+    is the oracle)."""
+    import rclpy
+    from rclpy.context import Context
+    import yaml
+
+    from extended_tracker.ros.node import TrackerNode
+
+    declared, make_node = _args(launch_module.generate_launch_description())
+    for scan in ('scan', '/front/scan', '~/scan', 'lidar/scan'):
+        configurations = dict(declared, scan=scan, rviz='true')
+        if namespace:
+            configurations['ros_namespace'] = namespace
+        tracker, rviz, cleanup = make_node(configurations)
+        with open(rviz.kwargs['arguments'][1]) as f:
+            displays = {d['Class']: d['Topic']['Value']
+                        for d in yaml.safe_load(f)['Visualization Manager']['Displays']
+                        if 'Topic' in d}
+        cleanup.args[0].kwargs['on_shutdown'](object(), None)
+        args = ['--ros-args', '-r', f'scan:={scan}']
+        if namespace:
+            args += ['-r', f'__ns:=/{namespace.lstrip("/")}']
+        ctx = Context()
+        rclpy.init(context=ctx, args=args)
+        try:
+            node = TrackerNode(context=ctx)
+            want = (node.sub.topic_name, node.pub_markers.topic_name)
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=ctx)
+        got = (displays['rviz_default_plugins/LaserScan'],
+               displays['rviz_default_plugins/MarkerArray'])
+        assert got == want, (namespace, scan)
