@@ -2,10 +2,11 @@
 Bag replay: LaserScans from a bag through :func:`pipeline.step` into a new MCAP bag.
 
 The output holds the node's topics: ``/scan`` (the input scans as read, in ROS 2 form
-whatever the input bag's topic and ROS version), ``/tracks`` (ExtendedObjectArray) and
-``/tracks/markers`` (MarkerArray), stamped with the scan stamps, with the message
-definitions stored so ``ros2 bag play`` on a Jazzy install replays it (and the installed
-RViz view shows it as it shows the live node). It is written into a temporary folder
+whatever the input bag's topic and ROS version, a ROS 1 ``frame_id``'s leading ``/``
+dropped), ``/tracks`` (ExtendedObjectArray) and ``/tracks/markers`` (MarkerArray),
+stamped with the scan stamps, with the message definitions stored so ``ros2 bag play``
+on a Jazzy install replays it (and the installed RViz view shows it as it shows the live
+node). It is written into a temporary folder
 beside the target and renamed into place only when complete: an interrupted replay
 leaves no bag.
 """
@@ -49,6 +50,7 @@ class ReplaySummary:
     p99_ms: float = 0.0
     events: dict = field(default_factory=dict)
     first_reasons: dict = field(default_factory=dict)   # event -> its first scan's reason
+    renamed_frames: dict = field(default_factory=dict)  # frame_id as read -> as written
     topic: str = ''
     output: str = ''
     plot: str = ''
@@ -63,7 +65,9 @@ class ReplaySummary:
             f'objects per scan mean {self.mean_count:.2f}, max {self.max_count}',
             f'time per scan    median {self.median_ms:.2f} ms, p99 {self.p99_ms:.2f} ms',
             f'events           {ev}',
-        ] + [f'  first {k}: {why}' for k, why in sorted(self.first_reasons.items())]
+        ] + [f'  first {k}: {why}' for k, why in sorted(self.first_reasons.items())] + [
+            f'frame_id         {old!r} written as {new!r} (tf2 in ROS 2 refuses a leading /)'
+            for old, new in sorted(self.renamed_frames.items())]
 
 
 class _Progress:
@@ -90,8 +94,22 @@ class _Progress:
             self.stream.write('\n')
 
 
-def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None):
-    """Yield ``(scan_message, StepResult)`` for every LaserScan of a bag, in time order."""
+def ros2_frame_id(frame_id: str) -> str:
+    """``frame_id`` as tf2 in ROS 2 takes it: ROS 1's leading ``/`` dropped (``/laser``
+    names the frame ``laser``; RViz2 shows nothing in a frame that starts with ``/``)."""
+    name = frame_id.lstrip('/')
+    return name if name else frame_id
+
+
+def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None,
+                   renamed_frames: dict | None = None):
+    """
+    Yield ``(scan_message, StepResult)`` for every LaserScan of a bag, in time order.
+
+    A scan whose ``frame_id`` has ROS 1's leading ``/`` is tracked and yielded with the
+    frame as ROS 2 names it (:func:`ros2_frame_id`); ``renamed_frames``, when given,
+    collects each such name as read and as used.
+    """
     reader, conns = open_scans(input_path, scan_topic)
     try:
         state = PipelineState.initial(cfg)
@@ -101,6 +119,11 @@ def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None
             except Exception as err:  # a corrupt record: say which, stop cleanly
                 msg = f'cannot decode a LaserScan on {conn.topic}: {err}'
                 raise BagError(msg) from err
+            frame = ros2_frame_id(scan.header.frame_id)
+            if frame != scan.header.frame_id:
+                if renamed_frames is not None:
+                    renamed_frames.setdefault(scan.header.frame_id, frame)
+                scan.header.frame_id = frame
             # the record time stands in for a zero header stamp (event zero_stamp)
             state, result = step(state, scan, cfg, arrival_ns=record_ns)
             yield scan, result
@@ -149,7 +172,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
             c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
             c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
             c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
-            for k, (scan, res) in enumerate(replay_results(input_path, cfg, scan_topic)):
+            results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames)
+            for k, (scan, res) in enumerate(results):
                 if fov is None and res.event != 'malformed_scan':
                     fov = _fov(scan)
                 tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))

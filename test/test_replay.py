@@ -42,7 +42,7 @@ def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0, zero_sta
                 w.write(c, ns, raw)
 
 
-def write_ros1(path, seconds=2.0, compression=None):
+def write_ros1(path, seconds=2.0, compression=None, frame_id=None):
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import get_typestore, Stores
 
@@ -55,6 +55,8 @@ def write_ros1(path, seconds=2.0, compression=None):
         for k, scan in enumerate(sim_scans(seconds)):
             data = scan_data(scan)
             data['header']['seq'] = k
+            if frame_id is not None:
+                data['header']['frame_id'] = frame_id
             msg = build_message(store, 'sensor_msgs/msg/LaserScan', data)
             ns = scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
             w.write(conn, ns, store.serialize_ros1(msg, 'sensor_msgs/msg/LaserScan'))
@@ -202,6 +204,26 @@ def test_a_ros2_folder_named_like_a_ros1_file_replays(tmp_path):
     # and the output, a ROS 2 folder named out.bag, replays in its turn
     again = replay(tmp_path / 'out.bag', tmp_path / 'again', CFG, progress=False)
     assert again.scans == 20
+
+
+def test_a_ros1_frame_id_loses_its_leading_slash(tmp_path):
+    """tf2 in ROS 2 refuses '/laser' (RViz2 shows nothing in it): the replay writes the
+    scans, tracks and markers in 'laser', tracks them exactly as a bag in 'laser' is
+    tracked, and says so in the summary."""
+    write_ros1(tmp_path / 'slash.bag', frame_id='/laser')
+    write_ros1(tmp_path / 'plain.bag', frame_id='laser')
+    s = replay(tmp_path / 'slash.bag', tmp_path / 'out_slash', CFG, progress=False)
+    plain = replay(tmp_path / 'plain.bag', tmp_path / 'out_plain', CFG, progress=False)
+    assert s.renamed_frames == {'/laser': 'laser'} and plain.renamed_frames == {}
+    assert "frame_id         '/laser' written as 'laser'" in '\n'.join(s.lines())
+    out, want = read_output(tmp_path / 'out_slash'), read_output(tmp_path / 'out_plain')
+    for topic in ('/scan', '/tracks'):
+        assert {m.header.frame_id for _, m in out[topic]} == {'laser'}
+    assert {m.header.frame_id for _, arr in out['/tracks/markers'] for m in arr.markers} \
+        == {'laser'}
+    for (_, a), (_, b) in zip(out['/tracks'], want['/tracks']):
+        assert [(o.id, o.position.x, o.position.y) for o in a.objects] == [
+            (o.id, o.position.x, o.position.y) for o in b.objects]
 
 
 def test_bundled_bag_replays():
