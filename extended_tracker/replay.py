@@ -152,10 +152,14 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     topic = conns[0].topic
     reader.close()
     store = message_typestore()
-    tmp = out.parent / f'.{out.name}.partial-{os.getpid()}'
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    # the bag is written under its own name inside a hidden staging folder beside the
+    # target (rosbags names the storage file after the bag's folder, so the finished bag
+    # holds OUTPUT.mcap, not a file named after a temporary folder) and moved into place
+    stage = out.parent / f'.{out.name}.partial-{os.getpid()}'
+    if stage.exists():
+        shutil.rmtree(stage)
+    stage.mkdir(parents=True)
+    tmp = stage / out.name
     summary = ReplaySummary(topic=topic, output=str(out))
     times, counts = [], []
     ids, first_pos, travel = set(), {}, {}
@@ -201,10 +205,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
                 if bar:
                     bar.update(k + 1)
         os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     finally:
+        shutil.rmtree(stage, ignore_errors=True)
         if bar:
             bar.close()
     summary.scans = len(times)

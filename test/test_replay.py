@@ -65,6 +65,11 @@ def write_ros1(path, seconds=2.0, compression=None, frame_id=None):
 def read_output(path):
     from rosbags.rosbag2 import Reader
 
+    # a finished bag: its storage file is named after the bag, nothing else beside it
+    path = Path(path)
+    assert sorted(f.name for f in path.iterdir()) == sorted([f'{path.name}.mcap', 'metadata.yaml'])
+    assert f'- {path.name}.mcap' in (path / 'metadata.yaml').read_text()
+    assert not list(path.parent.glob(f'.{path.name}.partial*'))
     store = message_typestore()
     out = {}
     with Reader(path) as r:
