@@ -139,7 +139,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     Raises
     ------
     BagError
-        When the output exists, or the input is missing, broken or has no usable topic.
+        When the output exists, or the input is missing, broken, has no usable topic or
+        no scans on it.
 
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -151,6 +152,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     total = sum(c.msgcount for c in conns)
     topic = conns[0].topic
     reader.close()
+    if total == 0:
+        raise BagError(f'{topic} in {input_path} holds no scans: nothing to replay')
     store = message_typestore()
     # the bag is written under its own name inside a hidden staging folder beside the
     # target (rosbags names the storage file after the bag's folder, so the finished bag

@@ -231,6 +231,19 @@ def test_a_ros1_frame_id_loses_its_leading_slash(tmp_path):
             (o.id, o.position.x, o.position.y) for o in b.objects]
 
 
+def test_a_topic_without_scans_is_refused(tmp_path):
+    """A LaserScan topic declared but never written (a recording stopped at once): a
+    clear error and no output, not a summary of 0 scans and an empty bag."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    with Writer(tmp_path / 'in', version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        w.add_connection('/scan', SCAN_TYPE, typestore=message_typestore())
+    with pytest.raises(BagError, match='/scan in .* holds no scans'):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, plot_path=tmp_path / 'p.png',
+               progress=False)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['in']
+
+
 def test_bundled_bag_replays():
     import tempfile
 
