@@ -80,6 +80,7 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_real(args) -> int:
+    from .errors import BagError
     from .replay import replay
 
     data = Path(args.data)
@@ -91,24 +92,38 @@ def cmd_real(args) -> int:
     given = _config(args.config) if args.config else None
     print(f'{"bag":48s} {"scans":>6s} {"det/scan":>8s} {"ids":>5s} {"moving":>6s} '
           f'{"mean n":>6s} {"ms med":>7s} {"ms p99":>7s}  config')
-    for folder in sorted(p for p in data.iterdir() if p.is_dir()):
-        target = out / f'{folder.name}_tracks'
+    failed = 0
+    # ROS 2 bag folders, and ROS 1 bag files, directly under DATA
+    bags = sorted(p for p in data.iterdir() if p.is_dir() or p.suffix == '.bag')
+    for bag in bags:
+        label = bag.name if bag.is_dir() else bag.stem
+        target = out / f'{label}_tracks'
         if target.exists():
             import shutil
 
             shutil.rmtree(target)
-        name = REAL_PRESETS.get(folder.name)
+        name = REAL_PRESETS.get(label)
         cfg = given or _config(None, name)
-        s = replay(folder, target, cfg, REAL_TOPICS.get(folder.name),
-                   out / f'{folder.name}.png', progress=False)
-        print(f'{folder.name:48s} {s.scans:6d} {s.valid_detections / max(s.scans, 1):8.1f} '
+        try:
+            s = replay(bag, target, cfg, REAL_TOPICS.get(label), out / f'{label}.png',
+                       progress=False)
+        except BagError as err:              # one unreadable bag does not stop the others
+            failed += 1
+            print(f'{label:48s} not replayed: {err}')
+            continue
+        print(f'{label:48s} {s.scans:6d} {s.valid_detections / max(s.scans, 1):8.1f} '
               f'{s.distinct_ids:5d} {s.moving_ids:6d} {s.mean_count:6.2f} '
               f'{s.median_ms:7.2f} {s.p99_ms:7.2f}  '
               f'{"--config" if given else (name or "defaults")}')
         for event, count in sorted(s.events.items()):
             why = s.first_reasons.get(event)
             print(f'  {event} {count}' + (f' (first: {why})' if why else ''))
+        for old, new in sorted(s.renamed_frames.items()):
+            print(f'  frame_id {old!r} written as {new!r}')
     print(f'bags and PNGs in {out}')
+    if failed:
+        print(f'{failed} of {len(bags)} not replayed', file=sys.stderr)
+        return 1
     return 0
 
 

@@ -437,3 +437,26 @@ def test_real_replays_every_folder_with_a_line_each(tmp_path, capsys):
     for name in ('a_plain', 'b_unstamped'):
         assert (tmp_path / 'out' / f'{name}.png').stat().st_size > 10_000
         assert (tmp_path / 'out' / f'{name}_tracks').is_dir()
+
+
+def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
+    """A folder that is no bag (or a broken one) gets a line saying why; the bags after it
+    (folders, and ROS 1 files beside them) are still replayed, and the exit status says
+    something failed."""
+    from extended_tracker.cli import main
+
+    data = tmp_path / 'real'
+    (data / 'a_notes').mkdir(parents=True)
+    (data / 'a_notes' / 'README.txt').write_text('not a bag')
+    write_ros1(data / 'b_ros1.bag', frame_id='/laser')
+    write_ros2(data / 'c_plain')
+    assert main(['real', '--data', str(data), '--out', str(tmp_path / 'out')]) == 1
+    captured = capsys.readouterr()
+    lines = captured.out.splitlines()
+    assert lines[1].startswith('a_notes') and 'not replayed: ' in lines[1]
+    assert lines[2].split()[0] == 'b_ros1' and lines[2].split()[1] == '20'
+    assert lines[3] == "  frame_id '/laser' written as 'laser'"
+    assert lines[4].split()[:2] == ['c_plain', '20']
+    assert '1 of 3 not replayed' in captured.err
+    assert (tmp_path / 'out' / 'c_plain.png').is_file()
+    assert not (tmp_path / 'out' / 'a_notes_tracks').exists()
