@@ -180,7 +180,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument('input', help='ROS 2 bag folder (sqlite3 or MCAP) or ROS 1 .bag')
     r.add_argument('--output', '-o', required=True, help='new ROS 2 bag folder (MCAP)')
     r.add_argument('--scan-topic', help='LaserScan topic when the bag has several')
-    r.add_argument('--config', help='YAML config (plain sections or ros__parameters form)')
+    r.add_argument('--config', help='YAML config: plain sections, or a ROS 2 parameter file '
+                                    '(the entries for the extended_tracker node)')
     r.add_argument('--preset', choices=sorted(PRESETS),
                    help='named changes from the defaults (leg_height: scanner at leg height)')
     r.add_argument('--plot', help='write a PNG of the run')

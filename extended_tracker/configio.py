@@ -4,18 +4,32 @@ from __future__ import annotations
 
 import yaml
 
-from .config import from_dict, TrackerConfig
+from .config import from_dict, from_flat, TrackerConfig
 from .errors import ConfigError
+
+
+NODE_NAME = 'extended_tracker'
+# parameters every ROS 2 node has (rclpy declares them), not the tracker's: a node's
+# parameter file may set them, and the offline tools pass over them
+ROS_NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+ROS_NODE_PREFIXES = ('qos_overrides.',)
 
 
 def load_yaml(path) -> TrackerConfig:
     """
-    Load a config YAML: either plain sections or ROS ``/**: ros__parameters:`` form.
+    Load a config YAML: plain sections, or a ROS 2 parameter file.
+
+    A parameter file is read as the tracker node would read it: the entries for its node
+    (``/**``, ``/*``, ``extended_tracker``, ``/ns/extended_tracker``, nested under
+    namespaces or not), in file order, later ones over earlier ones; nested or dotted
+    parameter names; other nodes' entries and the parameters every ROS node has
+    (``use_sim_time``, ``qos_overrides.*``) passed over.
 
     Raises
     ------
     ConfigError
-        When the file is unreadable, not a mapping, or holds a bad value.
+        When the file is unreadable, not a mapping, holds a bad value, or is a parameter
+        file with no entry for the tracker node.
 
     """
     try:
@@ -26,12 +40,49 @@ def load_yaml(path) -> TrackerConfig:
         raise ConfigError(msg) from err
     if not isinstance(data, dict):
         raise ConfigError(f'config {path} must be a mapping, got {type(data).__name__}')
-    for node_key in list(data):
-        sub = data[node_key]
-        if isinstance(sub, dict) and 'ros__parameters' in sub:
-            data = sub['ros__parameters']
-            break
-    return from_dict(data)
+    entries = list(_ros_entries(data, ()))
+    if not entries:
+        return from_dict(data)
+    mine = [(names, params) for names, params in entries if _for_this_node(names)]
+    if not mine:
+        found = ', '.join('/'.join(names) for names, _ in entries)
+        raise ConfigError(f'{path} has no parameters for the {NODE_NAME} node (its '
+                          f'entries: {found})')
+    flat = {}
+    for names, params in mine:
+        if params is None:                       # an entry with nothing under it
+            continue
+        if not isinstance(params, dict):
+            raise ConfigError(f'{"/".join(names)} in {path}: ros__parameters must be a '
+                              f'mapping, got {params!r}')
+        flat.update(_flattened(params, ''))
+    return from_flat({k: v for k, v in flat.items() if k not in ROS_NODE_PARAMETERS
+                      and not k.startswith(ROS_NODE_PREFIXES)})
+
+
+def _ros_entries(data: dict, names: tuple):
+    """``(key path, ros__parameters)`` of each node entry of a parameter file, in order."""
+    for key, sub in data.items():
+        if isinstance(sub, dict):
+            if 'ros__parameters' in sub:
+                yield names + (str(key),), sub['ros__parameters']
+            else:
+                yield from _ros_entries(sub, names + (str(key),))
+
+
+def _for_this_node(names: tuple) -> bool:
+    """Whether an entry's key path names the tracker node (or every node)."""
+    last = names[-1].strip('/').split('/')[-1]
+    return last in (NODE_NAME, '*', '**')
+
+
+def _flattened(params: dict, prefix: str):
+    """Nested parameter mappings as dotted names, as ROS gives them to the node."""
+    for key, value in params.items():
+        if isinstance(value, dict):
+            yield from _flattened(value, f'{prefix}{key}.')
+        else:
+            yield f'{prefix}{key}', value
 
 
 def _yaml_value(value) -> str:

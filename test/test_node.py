@@ -16,6 +16,7 @@ from rclpy.parameter import Parameter
 
 from extended_tracker.config import from_dict, to_dict, to_flat, TrackerConfig
 from extended_tracker.configio import default_yaml, load_yaml
+from extended_tracker.errors import ConfigError
 from extended_tracker.ros.convert import to_plain
 from extended_tracker.ros.node import parameter_descriptors
 from extended_tracker.ros.testing import laser_scan as ros_scan, NodeHarness
@@ -385,6 +386,71 @@ def test_changed_yaml_is_loaded(tmp_path):
         assert h.node.cfg.model.mode == 'phd' and h.node.cfg.partition.d_max == 1.2
     finally:
         h.close()
+
+
+ROBOT_PARAMS = {
+    # a robot-wide parameter file: another node first, every node's common settings, then
+    # the tracker's own entry in dotted names, overriding one of them
+    'root': """
+laser_driver:
+  ros__parameters:
+    frame_id: laser
+    model: {mode: none}
+/**:
+  ros__parameters:
+    use_sim_time: false
+    qos_overrides:
+      /scan:
+        subscription:
+          depth: 5
+    model:
+      mode: phd
+      n_max: 30
+extended_tracker:
+  ros__parameters:
+    model.n_max: 25
+    partition:
+      d_max: 2.5
+""",
+    # one robot's namespace, nested, beside another robot's tracker
+    'robot1': """
+robot1:
+  extended_tracker:
+    ros__parameters:
+      model:
+        mode: phd
+      partition.d_min: 0.2
+/robot1/laser_driver:
+  ros__parameters:
+    range_max: 30.0
+""",
+}
+
+
+@pytest.mark.parametrize('namespace', sorted(ROBOT_PARAMS))
+def test_offline_tools_read_a_node_parameter_file_as_the_node_does(tmp_path, namespace):
+    """`replay --config` on the node's parameter file: the node itself, started with it
+    (in the namespace the file is written for), is the oracle."""
+    path = tmp_path / 'robot.yaml'
+    path.write_text(ROBOT_PARAMS[namespace])
+    args = ['--ros-args', '--params-file', str(path)]
+    if namespace != 'root':
+        args += ['-r', f'__ns:=/{namespace}']
+    h = NodeHarness(args=args)
+    try:
+        from_node = h.node.cfg
+    finally:
+        h.close()
+    assert from_node != TrackerConfig()                  # the file did change something
+    assert load_yaml(path) == from_node
+
+
+def test_a_parameter_file_without_the_tracker_is_refused(tmp_path):
+    path = tmp_path / 'other.yaml'
+    path.write_text('laser_driver:\n  ros__parameters:\n    frame_id: laser\n')
+    with pytest.raises(ConfigError, match='no parameters for the extended_tracker node '
+                                          r'\(its entries: laser_driver\)'):
+        load_yaml(path)
 
 
 def test_invalid_values_are_refused_with_a_reason(harness):

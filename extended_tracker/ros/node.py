@@ -31,12 +31,12 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from ..config import from_flat, iter_leaves, to_flat, TrackerConfig
+from ..configio import NODE_NAME
 from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
 from ..pipeline import held, PipelineState, reset, step
 from .convert import fill
 
-NODE_NAME = 'extended_tracker'
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
 # estimates), or building or publishing its messages did.
 INTERNAL_ERROR = 'internal_error'
