@@ -48,6 +48,10 @@ def load_yaml(path) -> TrackerConfig:
         found = ', '.join('/'.join(names) for names, _ in entries)
         raise ConfigError(f'{path} has no parameters for the {NODE_NAME} node (its '
                           f'entries: {found})')
+    spaces = sorted({ns for ns in map(_namespace, (names for names, _ in mine)) if ns})
+    if len(spaces) > 1:                   # a node runs in one: which, only the user knows
+        raise ConfigError(f'{path} has {NODE_NAME} entries for several namespaces '
+                          f'({", ".join(spaces)}); give a file with one')
     flat = {}
     for names, params in mine:
         if params is None:                       # an entry with nothing under it
@@ -74,6 +78,14 @@ def _for_this_node(names: tuple) -> bool:
     """Whether an entry's key path names the tracker node (or every node)."""
     last = names[-1].strip('/').split('/')[-1]
     return last in (NODE_NAME, '*', '**')
+
+
+def _namespace(names: tuple) -> str:
+    """The namespace an entry names its node in; '' when it applies in any (wildcards)."""
+    parts = [p for n in names for p in str(n).split('/') if p]
+    if not parts or parts[-1] != NODE_NAME or any('*' in p for p in parts):
+        return ''
+    return '/' + '/'.join(parts[:-1])
 
 
 def _flattened(params: dict, prefix: str):

@@ -445,11 +445,16 @@ def test_offline_tools_read_a_node_parameter_file_as_the_node_does(tmp_path, nam
     assert load_yaml(path) == from_node
 
 
-def test_a_parameter_file_without_the_tracker_is_refused(tmp_path):
+def test_a_parameter_file_without_the_tracker_or_with_several_is_refused(tmp_path):
     path = tmp_path / 'other.yaml'
     path.write_text('laser_driver:\n  ros__parameters:\n    frame_id: laser\n')
     with pytest.raises(ConfigError, match='no parameters for the extended_tracker node '
                                           r'\(its entries: laser_driver\)'):
+        load_yaml(path)
+    # two robots' trackers: which one a replay stands for, only the user knows
+    path.write_text(ROBOT_PARAMS['robot1'] + ROBOT_PARAMS['robot1'].replace('robot1', 'robot2')
+                    + '/**:\n  ros__parameters:\n    model:\n      n_max: 30\n')
+    with pytest.raises(ConfigError, match=r'several namespaces \(/robot1, /robot2\)'):
         load_yaml(path)
 
 
