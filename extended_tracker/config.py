@@ -176,6 +176,9 @@ class ExtractionConfig:
                                  0.0, 100.0)
     rectangle_elongation: float = _f(2.5, 'or more elongated than this (semi-axes ratio) and '
                                      'at least half that long', '', 1.0, 100.0)
+    marker_lifetime: float = _f(1.0, 'RViz drops an object\'s markers this long after they '
+                                'were last sent, so a scanner or node that stops leaves no '
+                                'ghosts (0: kept until deleted)', 's', 0.0, 3600.0)
 
 
 @dataclass(frozen=True)

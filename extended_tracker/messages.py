@@ -138,12 +138,14 @@ def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
 
     Per object: its outline (ellipse, or rectangle when ``shape`` says so), a text label
     with the id, a velocity arrow; colours fixed per id. Markers of ids shown before and
-    gone now are deleted (``DELETE`` in each namespace), so RViz keeps no stale ghosts.
+    gone now are deleted (``DELETE`` in each namespace), so RViz keeps no stale ghosts;
+    each lives ``extraction.marker_lifetime`` so a stream that stops leaves none either.
     """
     e = result.estimates
     header = header_data(result.stamp_ns, result.frame_id)
     shape = shapes(e, cfg.extraction)
     major, minor, yaw = e.axes()
+    life = _time(round(cfg.extraction.marker_lifetime * 1e9))
     markers = []
     ids = set()
     for j in range(len(e)):
@@ -151,15 +153,15 @@ def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
         ids.add(lab)
         col = id_rgba(lab)
         c = e.m[j, :2]
-        markers.append(_marker(header, 'outline', lab, LINE_STRIP, ADD,
+        markers.append(_marker(header, 'outline', lab, LINE_STRIP, ADD, lifetime=life,
                                scale={'x': 0.04, 'y': 0.0, 'z': 0.0}, color=col,
                                points=outline_points(c, major[j], minor[j], yaw[j],
                                                      shape[j] == SHAPE_RECTANGLE)))
-        markers.append(_marker(header, 'label', lab, TEXT_VIEW_FACING, ADD,
+        markers.append(_marker(header, 'label', lab, TEXT_VIEW_FACING, ADD, lifetime=life,
                                pose=_pose(c[0], c[1], 0.5), text=str(lab),
                                scale={'x': 0.0, 'y': 0.0, 'z': 0.3}, color=col))
         tip = c + e.m[j, 2:4]
-        markers.append(_marker(header, 'velocity', lab, ARROW, ADD,
+        markers.append(_marker(header, 'velocity', lab, ARROW, ADD, lifetime=life,
                                scale={'x': 0.05, 'y': 0.1, 'z': 0.1}, color=col,
                                points=[{'x': float(c[0]), 'y': float(c[1]), 'z': 0.0},
                                        {'x': float(tip[0]), 'y': float(tip[1]), 'z': 0.0}]))

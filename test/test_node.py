@@ -69,6 +69,8 @@ def test_markers_outline_label_velocity_and_deletion(harness):
     assert sum(1 for x in m if x.ns == 'outline') == n_obj
     assert all(len(x.points) == 33 for x in m if x.ns == 'outline')   # closed ellipses
     assert all(x.header.stamp == harness.tracks[-1].header.stamp for x in m)
+    # they live a second after the last one sent: a scanner that stops leaves no ghosts
+    assert all((x.lifetime.sec, x.lifetime.nanosec) == (1, 0) for x in m)
     # an empty scan: tracks coast; then scans with nothing at all for a while: the
     # vanished ids' markers are deleted
     empty = copy.deepcopy(data[-1][0])
@@ -83,6 +85,18 @@ def test_markers_outline_label_velocity_and_deletion(harness):
     assert {x.ns for x in deletes} == {'outline', 'label', 'velocity'}
     assert len(harness.tracks[-1].objects) == 0
     assert not [x for x in harness.markers[-1].markers if x.action == 0]
+
+
+def test_marker_lifetime_is_a_parameter_and_zero_keeps_them():
+    for lifetime, want in ((0.25, (0, 250_000_000)), (0.0, (0, 0))):
+        h = NodeHarness(dict(NO_BACKGROUND, **{'extraction.marker_lifetime': lifetime}))
+        try:
+            for scan, _ in simulate(tutorial_scene(), 1.0, seed=1):
+                h.send(ros_scan(scan))
+            shown = [x for x in h.markers[-1].markers if x.action == 0]
+            assert shown and {(x.lifetime.sec, x.lifetime.nanosec) for x in shown} == {want}
+        finally:
+            h.close()
 
 
 @pytest.fixture
