@@ -181,6 +181,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
         truth = json.loads(Path(truth_path).read_text())
         by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
         view = truth.get('info', {}).get('view')
+        digest = truth.get('info', {}).get('scan_digest')
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
         msg = (f'cannot read the truth {truth_path} (a truth.json written by '
                f'extended-tracker simulate): {err!r}')
@@ -196,6 +197,8 @@ def evaluate_bag(output_bag, truth_path, plot=None):
         conns = [c for c in reader.connections if c.topic == '/tracks']
         if not conns:
             raise BagError(f'{output_bag} has no /tracks topic')
+        if digest is not None:
+            _check_scans(reader, store, digest, output_bag, truth_path)
         for conn, t, raw in reader.messages(connections=conns):
             msg = store.deserialize_cdr(raw, conn.msgtype)
             ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
@@ -222,6 +225,27 @@ def evaluate_bag(output_bag, truth_path, plot=None):
     if plot:
         _plot(plot, np.array(stamps), per, np.array(counts))
     return score, per, np.array(stamps)
+
+
+def _check_scans(reader, store, digest, output_bag, truth_path) -> None:
+    """
+    Refuse a truth written for other scans than the replay's ``/scan`` holds: two
+    simulations of the same rate share their stamps, so matching by stamp alone scores
+    a replay against the wrong truth without a word.
+    """
+    import hashlib
+
+    from .sim.bag import scan_ranges_bytes
+
+    h, n = hashlib.sha256(), 0
+    conns = [c for c in reader.connections if c.topic == '/scan']
+    for conn, _, raw in reader.messages(connections=conns):
+        h.update(scan_ranges_bytes(store.deserialize_cdr(raw, conn.msgtype)))
+        n += 1
+    if h.hexdigest() != digest:
+        raise BagError(f'{truth_path} is the truth of other scans than the {n} in '
+                       f'{output_bag} (a truth.json of another simulation?): evaluate '
+                       'the replay of the bag it was written with')
 
 
 def _plot(path, stamps, per, counts):

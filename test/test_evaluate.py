@@ -183,11 +183,16 @@ def test_results_go_between_the_readme_markers_and_nowhere_else(tmp_path, monkey
 
 def test_evaluate_refuses_bad_inputs_with_clear_errors(tmp_path, capsys):
     """A missing or broken truth file, a broken bag, a bag without /tracks, tracks whose
-    stamps the truth does not have: each a one-line error and exit code 2."""
+    stamps the truth does not have, the truth of another simulation at the same stamps
+    (another seed): each a one-line error and exit code 2."""
     from extended_tracker.cli import main
 
     write_sim_bag(tmp_path / 'scans', 'tutorial', seed=0, duration=0.5)
     truth = tmp_path / 'scans' / 'truth.json'
+    write_sim_bag(tmp_path / 'seed1', 'tutorial', seed=1, duration=0.5)
+    other_seed = tmp_path / 'seed1' / 'truth.json'
+    assert ([s['stamp_ns'] for s in json.loads(other_seed.read_text())['scans']]
+            == [s['stamp_ns'] for s in json.loads(truth.read_text())['scans']])
     replay(tmp_path / 'scans', tmp_path / 'out', from_dict({}), progress=False)
     (tmp_path / 'bad.json').write_text('{"scans": [')
     (tmp_path / 'other.json').write_text(json.dumps({'scans': [{'stamp_ns': 5,
@@ -199,6 +204,7 @@ def test_evaluate_refuses_bad_inputs_with_clear_errors(tmp_path, capsys):
         (tmp_path / 'empty', truth, 'cannot read'),
         (tmp_path / 'scans', truth, 'has no /tracks topic'),
         (tmp_path / 'out', tmp_path / 'other.json', 'no /tracks message matches'),
+        (tmp_path / 'out', other_seed, 'is the truth of other scans than the 5 in'),
     ]
     for bag, truth_file, fragment in cases:
         assert main(['evaluate', str(bag), '--truth', str(truth_file)]) == 2

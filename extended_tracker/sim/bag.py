@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
+
+import numpy as np
 
 from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data
 from ..errors import BagError
@@ -16,6 +19,11 @@ SCENE_OF = {
     'walls': laser.walls_scene,
     'demo': laser.demo_scene,
 }
+
+
+def scan_ranges_bytes(msg) -> bytes:
+    """A LaserScan's ranges as the float32 bytes a bag holds (for ``scan_digest``)."""
+    return np.asarray(msg.ranges, dtype=np.float32).tobytes()
 
 
 def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '/scan') -> dict:
@@ -43,11 +51,13 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     data = laser.simulate(sim_scene, duration, seed)
     store = message_typestore()
     truth = []
+    digest = hashlib.sha256()
     with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
         for scan, objs in data:
             stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
             msg = build_message(store, SCAN_TYPE, scan_data(scan))
+            digest.update(scan_ranges_bytes(msg))
             writer.write(conn, stamp, store.serialize_cdr(msg, SCAN_TYPE))
             truth.append({'stamp_ns': stamp, 'objects': [
                 {'id': o.id, 'kind': o.kind, 'centre': o.centre.tolist(),
@@ -56,6 +66,8 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     L = sim_scene.laser
     info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(data),
             'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json'),
+            # the scans this truth belongs to: evaluate checks a replay holds these
+            'scan_digest': digest.hexdigest(),
             # the region the scanner covers: evaluate scores over it
             'view': [L.angle_min, L.angle_max, L.range_max]}
     (out / 'truth.json').write_text(json.dumps({'info': info, 'scans': truth}))
