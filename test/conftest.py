@@ -1,6 +1,9 @@
 """Test-wide settings: DDS stays on this machine, Hypothesis is deterministic."""
 
+import atexit
 import os
+import shutil
+import tempfile
 
 # Before anything can initialise rclpy: discovery on loopback only (the default multicasts
 # to the network); ROS_LOCALHOST_ONLY is deprecated in Jazzy and must not override it.
@@ -10,6 +13,12 @@ os.environ.pop('ROS_LOCALHOST_ONLY', None)
 # localhost) must not see each other's topics. Domains 1..100 stay within the port range.
 os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
 os.environ.setdefault('MPLBACKEND', 'Agg')
+# rcl writes a log file per context (some 70 a run) under ~/.ros/log: this run's go to a
+# folder removed at its end, unless ROS_LOG_DIR names where to keep them
+if 'ROS_LOG_DIR' not in os.environ:
+    _logs = tempfile.mkdtemp(prefix='extended_tracker_test_logs_')
+    os.environ['ROS_LOG_DIR'] = _logs
+    atexit.register(shutil.rmtree, _logs, ignore_errors=True)
 
 from hypothesis import HealthCheck, settings  # noqa: E402
 
