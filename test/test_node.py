@@ -586,6 +586,10 @@ def test_process_shuts_down_cleanly(sig):
         assert '/front/scan' in line, line
         proc.send_signal(getattr(signal, sig))
         assert proc.wait(timeout=20) == 0
+        # its last word: what it handled, and nothing failing on the way out
+        rest = proc.stdout.read()
+        assert 'stopping after 0 scans; events: none' in rest, rest
+        assert 'Failed' not in rest and 'Traceback' not in rest, rest
     finally:
         if proc.poll() is None:
             proc.kill()

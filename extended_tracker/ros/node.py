@@ -14,6 +14,8 @@ calls.
 from __future__ import annotations
 
 import difflib
+import signal
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -23,9 +25,10 @@ from rcl_interfaces.msg import (
 )
 import rclpy
 from rclpy.exceptions import ParameterUninitializedException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
@@ -206,6 +209,11 @@ class TrackerNode(Node):
         self.get_logger().info(f'reset: {response.message}')
         return response
 
+    def summary(self) -> str:
+        """One line for the log at exit: scans handled and the events met."""
+        events = ', '.join(f'{k} {v}' for k, v in sorted(self.counts.items())) or 'none'
+        return f'stopping after {self.scans} scans; events: {events}'
+
     def _count(self, kind: str, text: str, error: bool = False) -> None:
         n = self.counts.get(kind, 0) + 1
         self.counts[kind] = n
@@ -237,34 +245,48 @@ class TrackerNode(Node):
         return arr
 
 
+#: how often the spin loop looks for a stop request (a signal), s
+STOP_POLL_S = 0.1
+
+
 def main(args=None) -> None:
-    rclpy.init(args=args)
+    """
+    Run the node until SIGINT or SIGTERM. The signals only ask the spin loop to stop
+    (rclpy's own handlers are off): the node then logs what it handled, with its context
+    still up, and shuts down. rclpy's handlers shut the context down from their own
+    thread at once, which raced with the node's last log line and its clean-up.
+    """
+    stop = threading.Event()
+    previous = {sig: signal.signal(sig, lambda *_: stop.set())
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
+        executor = SingleThreadedExecutor()
         node = TrackerNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=STOP_POLL_S)
+    except ExternalShutdownException:
         pass
     except ConfigError as err:
         rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid configuration: {err}')
         raise SystemExit(2) from err
-    except Exception:
-        # SIGINT/SIGTERM during start-up shut the context down before spin could create
-        # its executor; that is the requested shutdown, not a failure
-        if rclpy.ok():
-            raise
     finally:
         if node is not None:
+            node.get_logger().info(node.summary())
             node.destroy_node()
         _shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _shutdown() -> None:
     """
-    Shut the context down unless a signal already has. rclpy's SIGINT/SIGTERM handler
-    shuts it down from its own thread, and ``try_shutdown`` checks and then shuts down:
-    a signal between the two made it raise ``rcl_shutdown already called`` and the
-    process exit 1 (2 of 40 SIGINTs in a loop).
+    Shut the context down unless something else already has. ``try_shutdown`` checks
+    and then shuts down; a shutdown from another thread between the two (as rclpy's own
+    signal handlers did, 2 of 40 SIGINTs in a loop, before :func:`main` took the signals
+    over) made it raise ``rcl_shutdown already called`` and the process exit 1.
     """
     try:
         rclpy.try_shutdown()
