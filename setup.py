@@ -27,7 +27,7 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'tracker_node = extended_tracker.ros.node:main',
+            'tracker_node = extended_tracker.ros.entry:main',
             'extended-tracker = extended_tracker.cli:main',
         ],
     },

@@ -595,6 +595,36 @@ def test_process_shuts_down_cleanly(sig):
             proc.kill()
 
 
+def test_a_stop_asked_for_while_starting_ends_quietly(monkeypatch):
+    """The executable takes SIGINT/SIGTERM before its heavy imports: a signal then only
+    sets the stop, the node is never started, the process ends with status 0 (not a
+    KeyboardInterrupt traceback from an import, or a kill by SIGTERM), and the handlers
+    it found are back afterwards."""
+    import os
+    import signal
+
+    import rclpy
+
+    import extended_tracker.ros.entry as entry
+    import extended_tracker.ros.node as node_mod
+
+    before = {sig: signal.getsignal(sig) for sig in entry.STOP_SIGNALS}
+    inits = []
+    monkeypatch.setattr(rclpy, 'init', lambda *a, **k: inits.append(1))
+    real_main = node_mod.main
+
+    for sig in entry.STOP_SIGNALS:
+        def slow_start(args=None, stop=None, sig=sig):
+            os.kill(os.getpid(), sig)             # arrives while the node is loading
+            assert stop.wait(5)
+            return real_main(args, stop=stop)
+
+        monkeypatch.setattr(node_mod, 'main', slow_start)
+        entry.main([])                            # returns: no exception, no exit
+    assert not inits
+    assert {sig: signal.getsignal(sig) for sig in entry.STOP_SIGNALS} == before
+
+
 def test_process_refuses_an_invalid_parameter_with_the_reason():
     import os
     import subprocess

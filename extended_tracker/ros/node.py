@@ -14,7 +14,6 @@ calls.
 from __future__ import annotations
 
 import difflib
-import signal
 import threading
 import time
 
@@ -39,6 +38,7 @@ from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
 from ..pipeline import held, PipelineState, reset, step
 from .convert import fill
+from .entry import give_back, take_signals
 
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
 # estimates), or building or publishing its messages did.
@@ -249,19 +249,23 @@ class TrackerNode(Node):
 STOP_POLL_S = 0.1
 
 
-def main(args=None) -> None:
+def main(args=None, stop: threading.Event | None = None) -> None:
     """
-    Run the node until SIGINT or SIGTERM. The signals only ask the spin loop to stop
-    (rclpy's own handlers are off): the node then logs what it handled, with its context
-    still up, and shuts down. rclpy's handlers shut the context down from their own
-    thread at once, which raced with the node's last log line and its clean-up.
+    Run the node until SIGINT or SIGTERM (or until ``stop`` is set: the executable's
+    :mod:`entry` passes the event its signal handlers set). The signals only ask the spin
+    loop to stop (rclpy's own handlers are off): the node then logs what it handled, with
+    its context still up, and shuts down. rclpy's handlers shut the context down from
+    their own thread at once, which raced with the node's last log line and its clean-up.
     """
-    stop = threading.Event()
-    previous = {sig: signal.signal(sig, lambda *_: stop.set())
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    previous = {}
+    if stop is None:
+        stop = threading.Event()
+        previous = take_signals(stop)
     node = None
     try:
+        if stop.is_set():                     # asked to stop while starting: nothing to do
+            return
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         executor = SingleThreadedExecutor()
         node = TrackerNode()
         executor.add_node(node)
@@ -277,8 +281,7 @@ def main(args=None) -> None:
             node.get_logger().info(node.summary())
             node.destroy_node()
         _shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        give_back(previous)
 
 
 def _shutdown() -> None:
