@@ -1,6 +1,7 @@
 """
 ``ros2 launch extended_tracker tracker.launch.py [scan:=/front/scan] [preset:=leg_height]
-[params_file:=/path/to/tracker.yaml] [use_sim_time:=true] [rviz:=true [rviz_frame:=laser]]``
+[params_file:=/path/to/tracker.yaml] [use_sim_time:=true] [namespace:=front]
+[rviz:=true [rviz_frame:=laser]]``
 
 Starts ``tracker_node`` with the installed ``config/tracker.yaml`` (or ``params_file``),
 then the preset's changes (``config/<preset>.yaml``) when one is named, and the input topic
@@ -8,9 +9,11 @@ remapped to ``scan``. ``use_sim_time`` for a bag played with ``ros2 bag play --c
 ``rviz:=true`` also starts RViz2 with the installed ``rviz/tracker.rviz``, its scan display
 on ``scan`` and its fixed frame ``rviz_frame`` (the scan's ``frame_id`` when no TF is
 published); that config is a copy written to a temporary directory, removed when the
-launch shuts down. Included under a pushed namespace (``PushRosNamespace``), the node runs
-in it, and the RViz displays follow: a relative ``scan`` and the node's marker topic are
-taken in that namespace.
+launch shuts down. ``namespace`` puts the node (and RViz) in a namespace, as does
+including the launch under ``PushRosNamespace`` (a relative ``namespace`` goes inside a
+pushed one): one tracker per scanner, ``namespace:=front`` and ``namespace:=rear``. The
+RViz displays follow: a relative ``scan`` and the node's marker topic are taken in the
+node's namespace.
 """
 
 import os
@@ -55,6 +58,14 @@ def resolve(name: str, namespace: str) -> str:
     return '/' + (ns + '/' if ns else '') + name
 
 
+def node_namespace(pushed: str, given: str) -> str:
+    """The namespace a node given ``given`` runs in under a pushed namespace (as
+    launch_ros combines them: an absolute ``given`` stands alone)."""
+    if given.startswith('/'):
+        return given
+    return '/' + '/'.join(p for p in (pushed.strip('/'), given.strip('/')) if p)
+
+
 def rviz_config(share: str, scan_topic: str, out_dir: str, namespace: str = '') -> str:
     """
     The installed RViz config with its LaserScan display on ``scan_topic`` and its marker
@@ -90,17 +101,19 @@ def _node(context, *args, **kwargs):
                             LaunchConfiguration('preset').perform(context))
     sim_time = LaunchConfiguration('use_sim_time').perform(context).lower() == 'true'
     scan = LaunchConfiguration('scan').perform(context)
+    given = LaunchConfiguration('namespace').perform(context)
     nodes = [Node(package=PACKAGE, executable='tracker_node', name=NODE_NAME,
-                  output='screen', parameters=files + [{'use_sim_time': sim_time}],
+                  namespace=given or None, output='screen',
+                  parameters=files + [{'use_sim_time': sim_time}],
                   remappings=[('scan', scan)])]
     if LaunchConfiguration('rviz').perform(context).lower() == 'true':
         out_dir = tempfile.mkdtemp(prefix='extended_tracker_rviz_')
-        # a namespace pushed around this launch (PushRosNamespace) puts the node in it
-        namespace = context.launch_configurations.get('ros_namespace') or ''
-        config = rviz_config(share, scan, out_dir, namespace)
+        # a namespace pushed around this launch (PushRosNamespace) holds the node too
+        pushed = context.launch_configurations.get('ros_namespace') or ''
+        config = rviz_config(share, scan, out_dir, node_namespace(pushed, given))
         frame = LaunchConfiguration('rviz_frame').perform(context)
         nodes.append(Node(package='rviz2', executable='rviz2', name='rviz2',
-                          arguments=['-d', config, '-f', frame],
+                          namespace=given or None, arguments=['-d', config, '-f', frame],
                           parameters=[{'use_sim_time': sim_time}]))
         nodes.append(_remove_on_shutdown(out_dir))
     return nodes
@@ -117,6 +130,9 @@ def generate_launch_description():
                                           'config/tracker.yaml)'),
         DeclareLaunchArgument('use_sim_time', default_value='false',
                               description='use /clock (a bag played with --clock)'),
+        DeclareLaunchArgument('namespace', default_value='',
+                              description='namespace of the node (one tracker per scanner: '
+                                          'front, rear)'),
         DeclareLaunchArgument('rviz', default_value='false',
                               description='also start RViz2 with the scan and the tracks'),
         DeclareLaunchArgument('rviz_frame', default_value='laser',

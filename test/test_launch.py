@@ -80,10 +80,11 @@ def test_node_gets_the_installed_parameters_and_the_remapped_scan(launch_module)
 
     declared, make_node = _args(launch_module.generate_launch_description())
     assert declared == {'scan': 'scan', 'preset': '', 'params_file': '', 'use_sim_time': 'false',
-                        'rviz': 'false', 'rviz_frame': 'laser'}
+                        'namespace': '', 'rviz': 'false', 'rviz_frame': 'laser'}
     (node,) = make_node(dict(declared, scan='/front/scan'))       # no RViz unless asked
     kw = node.kwargs
     assert kw['package'] == 'extended_tracker' and kw['name'] == 'extended_tracker'
+    assert kw['namespace'] is None                             # the launch's own, if any
     exe = Path(get_package_prefix('extended_tracker')) / 'lib' / 'extended_tracker'
     assert (exe / kw['executable']).is_file()                  # where ros2 run looks
     share = Path(get_package_share_directory('extended_tracker'))
@@ -139,11 +140,14 @@ def test_rviz_starts_on_request_with_the_scan_topic_and_fixed_frame(launch_modul
         assert not Path(path).parent.exists()
 
 
-@pytest.mark.parametrize('namespace', ['', '/robot1', 'robot1/left'])
-def test_rviz_shows_the_node_s_topics_under_a_pushed_namespace(launch_module, namespace):
-    """Included under PushRosNamespace, RViz's scan and marker displays are the topics the
-    node itself resolves there (the node, started with the same namespace and remapping,
-    is the oracle)."""
+@pytest.mark.parametrize('pushed, given', [('', ''), ('/robot1', ''), ('robot1/left', ''),
+                                           ('', 'front'), ('/robot1', 'front'),
+                                           ('/robot1', '/rear')])
+def test_rviz_shows_the_node_s_topics_in_its_namespace(launch_module, pushed, given):
+    """With a namespace pushed around the include (PushRosNamespace), given as the
+    namespace argument, or both, RViz's scan and marker displays are the topics the node
+    itself resolves where it runs (the node, started in the namespace launch_ros gives
+    it and with the same remapping, is the oracle)."""
     import rclpy
     from rclpy.context import Context
     import yaml
@@ -151,19 +155,23 @@ def test_rviz_shows_the_node_s_topics_under_a_pushed_namespace(launch_module, na
     from extended_tracker.ros.node import TrackerNode
 
     declared, make_node = _args(launch_module.generate_launch_description())
+    # launch_ros: a relative node namespace goes inside the pushed one, an absolute one not
+    where = given if given.startswith('/') else '/' + '/'.join(
+        p for p in (pushed.strip('/'), given) if p)
     for scan in ('scan', '/front/scan', '~/scan', 'lidar/scan'):
-        configurations = dict(declared, scan=scan, rviz='true')
-        if namespace:
-            configurations['ros_namespace'] = namespace
+        configurations = dict(declared, scan=scan, rviz='true', namespace=given)
+        if pushed:
+            configurations['ros_namespace'] = pushed
         tracker, rviz, cleanup = make_node(configurations)
+        assert tracker.kwargs['namespace'] == rviz.kwargs['namespace'] == (given or None)
         with open(rviz.kwargs['arguments'][1]) as f:
             displays = {d['Class']: d['Topic']['Value']
                         for d in yaml.safe_load(f)['Visualization Manager']['Displays']
                         if 'Topic' in d}
         cleanup.args[0].kwargs['on_shutdown'](object(), None)
         args = ['--ros-args', '-r', f'scan:={scan}']
-        if namespace:
-            args += ['-r', f'__ns:=/{namespace.lstrip("/")}']
+        if where != '/':
+            args += ['-r', f'__ns:={where}']
         ctx = Context()
         rclpy.init(context=ctx, args=args)
         try:
@@ -174,4 +182,4 @@ def test_rviz_shows_the_node_s_topics_under_a_pushed_namespace(launch_module, na
             rclpy.try_shutdown(context=ctx)
         got = (displays['rviz_default_plugins/LaserScan'],
                displays['rviz_default_plugins/MarkerArray'])
-        assert got == want, (namespace, scan)
+        assert got == want, (pushed, given, scan)
