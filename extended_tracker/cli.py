@@ -20,6 +20,8 @@ import numpy as np
 from pathlib import Path
 import sys
 
+from . import __version__
+
 from .errors import ConfigError, ExtendedTrackerError
 
 # bags in ../shared/data/real with more than one LaserScan topic: the one to replay
@@ -175,6 +177,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog='extended-tracker',
         description='Extended object tracking in 2D laser scans: replay bags, simulate '
                     'scenes, evaluate against truth, measure speed.')
+    p.add_argument('--version', action='version', version=f'%(prog)s {__version__}')
     sub = p.add_subparsers(dest='command', required=True)
     r = sub.add_parser('replay', help='track the LaserScans of a bag into a new MCAP bag')
     r.add_argument('input', help='ROS 2 bag folder (sqlite3 or MCAP) or ROS 1 .bag')

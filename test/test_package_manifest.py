@@ -90,3 +90,23 @@ def test_core_layers_import_one_way():
             assert not (mods & ROS_MODULES), f'{rel} imports ROS: {sorted(mods & ROS_MODULES)}'
             continue
         assert mods <= CORE_ALLOWED, f'core module {rel} imports {sorted(mods - CORE_ALLOWED)}'
+
+
+def test_one_version_everywhere(capsys):
+    """package.xml (both packages), setup.py, the module and `extended-tracker --version`
+    give the same version."""
+    import re
+
+    import pytest
+
+    from extended_tracker import __version__
+    from extended_tracker.cli import main
+
+    xml = [ET.parse(p).getroot().findtext('version') for p in (
+        ROOT / 'package.xml', ROOT / 'interfaces' / 'extended_tracker_msgs' / 'package.xml')]
+    (setup,) = re.findall(r"version='([^']+)'", (ROOT / 'setup.py').read_text())
+    assert xml == [setup, setup] and __version__ == setup
+    with pytest.raises(SystemExit) as done:
+        main(['--version'])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f'extended-tracker {setup}'
