@@ -86,8 +86,16 @@ def cmd_real(args) -> int:
     from .replay import replay
 
     data = Path(args.data)
-    if not data.is_dir():
-        print(f'no real recordings at {data}; nothing to do', file=sys.stderr)
+    if (data / 'metadata.yaml').is_file() or (data.is_file() and data.suffix == '.bag'):
+        bags = [data]                              # DATA is one recording itself
+    elif data.is_dir():
+        # ROS 2 bag folders, and ROS 1 bag files, directly under DATA
+        bags = sorted(p for p in data.iterdir() if p.is_dir() or p.suffix == '.bag')
+    else:
+        bags = []
+    if not bags:
+        print(f'no recordings at {data} (ROS 2 bag folders or ROS 1 .bag files); '
+              'nothing to do', file=sys.stderr)
         return 0
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -95,8 +103,6 @@ def cmd_real(args) -> int:
     print(f'{"bag":48s} {"scans":>6s} {"det/scan":>8s} {"ids":>5s} {"moving":>6s} '
           f'{"mean n":>6s} {"ms med":>7s} {"ms p99":>7s}  config')
     failed = 0
-    # ROS 2 bag folders, and ROS 1 bag files, directly under DATA
-    bags = sorted(p for p in data.iterdir() if p.is_dir() or p.suffix == '.bag')
     for bag in bags:
         label = bag.name if bag.is_dir() else bag.stem
         target = out / f'{label}_tracks'

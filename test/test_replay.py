@@ -439,6 +439,29 @@ def test_real_replays_every_folder_with_a_line_each(tmp_path, capsys):
         assert (tmp_path / 'out' / f'{name}_tracks').is_dir()
 
 
+def test_real_on_one_bag_replays_it_and_on_no_bags_says_so(tmp_path, capsys):
+    """`real --data` naming a bag itself (folder or ROS 1 file) replays that bag; a folder
+    without bags, or no folder, is said to hold none (status 0: `make real` without
+    ../shared is not an error)."""
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'one')
+    write_ros1(tmp_path / 'two.bag')
+    (tmp_path / 'empty').mkdir()
+    for data, label in (('one', 'one'), ('two.bag', 'two')):
+        assert main(['real', '--data', str(tmp_path / data),
+                     '--out', str(tmp_path / f'out_{label}')]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert lines[1].split()[:2] == [label, '20'], lines
+        assert (tmp_path / f'out_{label}' / f'{label}.png').is_file()
+    for data in ('empty', 'missing'):
+        assert main(['real', '--data', str(tmp_path / data), '--out',
+                     str(tmp_path / 'out_none')]) == 0
+        captured = capsys.readouterr()
+        assert 'no recordings at' in captured.err and not captured.out
+    assert not (tmp_path / 'out_none').exists()
+
+
 def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
     """A folder that is no bag (or a broken one) gets a line saying why; the bags after it
     (folders, and ROS 1 files beside them) are still replayed, and the exit status says
