@@ -48,13 +48,12 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     if seed < 0:
         raise BagError(f'seed must be a non-negative integer, got {seed}')
     sim_scene = SCENE_OF[scene]()
-    data = laser.simulate(sim_scene, duration, seed)
     store = message_typestore()
     truth = []
     digest = hashlib.sha256()
     with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
-        for scan, objs in data:
+        for scan, objs in laser.simulated_scans(sim_scene, duration, seed):
             stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
             msg = build_message(store, SCAN_TYPE, scan_data(scan))
             digest.update(scan_ranges_bytes(msg))
@@ -64,7 +63,7 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
                  'velocity': o.velocity.tolist(), 'extent': o.extent.tolist(),
                  'visible_beams': o.visible_beams} for o in objs]})
     L = sim_scene.laser
-    info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(data),
+    info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(truth),
             'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json'),
             # the scans this truth belongs to: evaluate checks a replay holds these
             'scan_digest': digest.hexdigest(),

@@ -208,13 +208,18 @@ def simulate(scene: Scene, duration: float, seed: int, t0_ns: int = 1_700_000_00
     list of (ScanData, list[TruthObject])
 
     """
+    return list(simulated_scans(scene, duration, seed, t0_ns))
+
+
+def simulated_scans(scene: Scene, duration: float, seed: int,
+                    t0_ns: int = 1_700_000_000_000_000_000):
+    """:func:`simulate` one scan at a time (a long run need not fit in memory)."""
     rng = np.random.default_rng(seed)
     L = scene.laser
     angles = L.angles()
     d = np.column_stack([np.cos(angles), np.sin(angles)])
     walls = np.asarray(scene.walls, float).reshape(-1, 2, 2)
     wall_range = _ray_segments(d, walls[:, 0], walls[:, 1])
-    out = []
     n_scans = int(round(duration * L.rate_hz))
     for k in range(n_scans):
         t = k / L.rate_hz
@@ -254,8 +259,7 @@ def simulate(scene: Scene, duration: float, seed: int, t0_ns: int = 1_700_000_00
             angle_min=L.angle_min, angle_max=L.angle_max, angle_increment=L.increment,
             range_min=L.range_min, range_max=L.range_max,
             ranges=ranges.astype(np.float32), scan_time=1.0 / L.rate_hz)
-        out.append((scan, truth))
-    return out
+        yield scan, truth
 
 
 # --- the scenario suite (fixed seeds live with the callers) ---
