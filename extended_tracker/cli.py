@@ -234,6 +234,9 @@ def main(argv=None) -> int:
     except ExtendedTrackerError as err:
         print(f'extended-tracker: error: {err}', file=sys.stderr)
         return 2
+    except OSError as err:          # a path that cannot be written or read, a full disk
+        print(f'extended-tracker: error: {err}', file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print('extended-tracker: interrupted', file=sys.stderr)
         return 130

@@ -186,6 +186,8 @@ def evaluate_bag(output_bag, truth_path, plot=None):
         msg = (f'cannot read the truth {truth_path} (a truth.json written by '
                f'extended-tracker simulate): {err!r}')
         raise BagError(msg) from err
+    if plot:
+        Path(plot).parent.mkdir(parents=True, exist_ok=True)
     store = message_typestore()
     truth_seq, est_seq, stamps, counts = [], [], [], []
     try:

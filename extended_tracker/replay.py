@@ -148,6 +148,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     out = Path(output_path)
     if out.exists():
         raise BagError(f'output {out} exists; refusing to overwrite it')
+    if plot_path:                         # its folder now: not found only after the run
+        Path(plot_path).parent.mkdir(parents=True, exist_ok=True)
     reader, conns = open_scans(input_path, scan_topic)
     total = sum(c.msgcount for c in conns)
     topic = conns[0].topic

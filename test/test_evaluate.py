@@ -21,12 +21,12 @@ def test_replayed_bag_scores_against_its_truth(tmp_path):
     cfg = from_dict({'background': {'enabled': False}})
     replay(tmp_path / 'scans', tmp_path / 'out', cfg, progress=False)
     score, per, stamps = evaluate_bag(tmp_path / 'out', tmp_path / 'scans' / 'truth.json',
-                                      plot=tmp_path / 'g.png')
+                                      plot=tmp_path / 'plots' / 'g.png')   # folder made
     assert score.scans == 60 == len(per) == len(stamps)
     # two pedestrians, one hidden behind the other for ~2 s: kept, so GOSPA stays small
     # (a missed pedestrian alone costs sqrt(2) = 1.41 m in a scan)
     assert score.gospa_mean < 0.8 and score.id_switches == 0
-    assert (tmp_path / 'g.png').stat().st_size > 10_000
+    assert (tmp_path / 'plots' / 'g.png').stat().st_size > 10_000
     exe = Path(sys.executable).with_name('extended-tracker')
     done = subprocess.run([str(exe), 'evaluate', str(tmp_path / 'out'), '--truth',
                            str(tmp_path / 'scans' / 'truth.json')], capture_output=True,

@@ -402,6 +402,24 @@ def test_cli_replay_prints_a_summary(tmp_path):
     assert again.returncode == 2 and 'refusing to overwrite' in again.stderr
 
 
+def test_plot_paths_get_their_folder_or_a_one_line_error(tmp_path, capsys):
+    """--plot in a folder not made yet: made, as the output bag's is. A plot path that
+    cannot be made (its folder is a file): a one-line error before any work, no bag."""
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'in', seconds=1.0)
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out'), '--plot',
+                 str(tmp_path / 'new' / 'deeper' / 'run.png')]) == 0
+    assert (tmp_path / 'new' / 'deeper' / 'run.png').stat().st_size > 10_000
+    capsys.readouterr()
+    (tmp_path / 'file').write_text('not a folder')
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out2'), '--plot',
+                 str(tmp_path / 'file' / 'run.png')]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith('extended-tracker: error: ') and str(tmp_path / 'file') in err, err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / 'out2').exists()
+
+
 def test_cli_replay_with_a_preset(tmp_path, capsys):
     from extended_tracker.cli import main
 
