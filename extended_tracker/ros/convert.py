@@ -25,7 +25,8 @@ def _shared_defaults(msg_cls, present: frozenset) -> dict:
     One default instance for each message-typed field of ``msg_cls`` absent from the data.
 
     These are never filled (fill only writes the fields present), so every new message can
-    share them; a Marker then skips building its texture image, mesh file and lifetime.
+    share them; a Marker then skips building its texture image and mesh file (and a DELETE
+    marker its lifetime).
     """
     shared = {}
     for name in msg_cls.get_fields_and_field_types():
