@@ -21,8 +21,7 @@ from pathlib import Path
 import sys
 
 from . import __version__
-
-from .errors import ConfigError, ExtendedTrackerError
+from .errors import BagError, ConfigError, ExtendedTrackerError
 
 # bags in ../shared/data/real with more than one LaserScan topic: the one to replay
 REAL_TOPICS = {
@@ -82,7 +81,6 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_real(args) -> int:
-    from .errors import BagError
     from .replay import replay
 
     data = Path(args.data)

@@ -6,9 +6,8 @@ whatever the input bag's topic and ROS version, a ROS 1 ``frame_id``'s leading `
 dropped), ``/tracks`` (ExtendedObjectArray) and ``/tracks/markers`` (MarkerArray),
 stamped with the scan stamps, with the message definitions stored so ``ros2 bag play``
 on a Jazzy install replays it (and the installed RViz view shows it as it shows the live
-node). It is written into a temporary folder
-beside the target and renamed into place only when complete: an interrupted replay
-leaves no bag.
+node). It is written under its own name inside a hidden staging folder beside the target
+and moved into place only when complete: an interrupted replay leaves no bag.
 """
 
 from __future__ import annotations
