@@ -27,8 +27,9 @@ from launch.event_handlers import OnShutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+from extended_tracker.configio import NODE_NAME
+
 PACKAGE = 'extended_tracker'
-NODE_NAME = 'extended_tracker'
 
 
 def parameter_files(share: str, params_file: str, preset: str) -> list:
