@@ -8,9 +8,11 @@ typestore from their ``.msg`` definitions, so bags written here carry the defini
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from functools import lru_cache
 import os
 from pathlib import Path
+import shutil
 import sys
 
 from .errors import BagError
@@ -221,3 +223,25 @@ def open_scans(path, scan_topic: str | None = None):
     else:
         topic = topics[0]
     return reader, [c for c in scans if c.topic == topic]
+
+
+@contextmanager
+def staged_bag(out: Path):
+    """
+    Yield the path to write a new bag folder at; it is moved to ``out`` when the block
+    ends without an exception.
+
+    rosbags names the storage file after the bag's folder, so the bag is written under
+    ``out``'s own name inside a hidden staging folder beside it (``.OUT.partial-PID``)
+    and the finished bag holds ``OUT.mcap``. An exception or an interruption in the
+    block removes the staging folder and leaves nothing at ``out``.
+    """
+    stage = out.parent / f'.{out.name}.partial-{os.getpid()}'
+    if stage.exists():
+        shutil.rmtree(stage)
+    stage.mkdir(parents=True)
+    try:
+        yield stage / out.name
+        os.replace(stage / out.name, out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

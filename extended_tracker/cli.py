@@ -15,6 +15,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
+import threading
 
 import numpy as np
 from pathlib import Path
@@ -221,23 +223,49 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+class Terminated(BaseException):
+    """SIGTERM arrived: raised in the main thread so cleanups run, as for Ctrl-C."""
+
+
+_terminated = threading.Event()
+
+
+def _terminate(signum, frame):
+    _terminated.set()
+    raise Terminated
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if extra and args.func is not cmd_bench:
         parser.error(f'unrecognized arguments: {" ".join(extra)}')
     args.passed_on = extra
+    # SIGTERM (a kill, a supervisor, a CI timeout) ends a command as Ctrl-C does: a replay
+    # or simulate removes its staging folder instead of dying with it half written
+    previous = None
+    _terminated.clear()
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.func(args)
-    except ExtendedTrackerError as err:
-        print(f'extended-tracker: error: {err}', file=sys.stderr)
-        return 2
-    except OSError as err:          # a path that cannot be written or read, a full disk
-        print(f'extended-tracker: error: {err}', file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print('extended-tracker: interrupted', file=sys.stderr)
-        return 130
+    except BaseException as err:
+        # a cleanup that fails while Terminated unwinds (a writer closing half a record)
+        # replaces it with its own exception: the flag still says why the command ended
+        if _terminated.is_set():
+            print('extended-tracker: terminated', file=sys.stderr)
+            return 128 + signal.SIGTERM
+        if isinstance(err, (ExtendedTrackerError, OSError)):
+            # OSError: a path that cannot be made or read, a full disk
+            print(f'extended-tracker: error: {err}', file=sys.stderr)
+            return 2
+        if isinstance(err, KeyboardInterrupt):
+            print('extended-tracker: interrupted', file=sys.stderr)
+            return 130
+        raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == '__main__':

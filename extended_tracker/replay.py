@@ -14,9 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-import os
 from pathlib import Path
-import shutil
 import sys
 import time
 
@@ -24,7 +22,7 @@ import numpy as np
 
 from .bagio import (
     BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, SCAN_TYPE,
-    scan_data, TRACKS_TYPE,
+    scan_data, staged_bag, TRACKS_TYPE,
 )
 from .config import TrackerConfig
 from .messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
@@ -156,14 +154,6 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     if total == 0:
         raise BagError(f'{topic} in {input_path} holds no scans: nothing to replay')
     store = message_typestore()
-    # the bag is written under its own name inside a hidden staging folder beside the
-    # target (rosbags names the storage file after the bag's folder, so the finished bag
-    # holds OUTPUT.mcap, not a file named after a temporary folder) and moved into place
-    stage = out.parent / f'.{out.name}.partial-{os.getpid()}'
-    if stage.exists():
-        shutil.rmtree(stage)
-    stage.mkdir(parents=True)
-    tmp = stage / out.name
     summary = ReplaySummary(topic=topic, output=str(out))
     times, counts = [], []
     ids, first_pos, travel = set(), {}, {}
@@ -176,7 +166,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
 
         sketch = RunSketch(lambda e: shapes(e, cfg.extraction) == SHAPE_RECTANGLE)
     try:
-        with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        with staged_bag(out) as tmp, Writer(tmp, version=9,
+                                            storage_plugin=StoragePlugin.MCAP) as writer:
             c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
             c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
             c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
@@ -208,9 +199,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
                     sketch.add(res)
                 if bar:
                     bar.update(k + 1)
-        os.replace(tmp, out)
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
         if bar:
             bar.close()
     summary.scans = len(times)

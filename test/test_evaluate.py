@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 from extended_tracker.evaluate import evaluate_bag, in_view, run_scenario, truth_of, VARIANTS
 from extended_tracker.sim.laser import TruthObject
@@ -152,6 +153,33 @@ def test_simulate_command_writes_a_bag_and_its_truth(tmp_path, capsys):
         assert main(['simulate', str(tmp_path / 'refused')] + args) == 2
         assert fragment in capsys.readouterr().err
         assert not (tmp_path / 'refused').exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['sim']
+
+
+def test_an_interrupted_simulate_leaves_nothing_at_its_output(tmp_path, monkeypatch):
+    """The bag and its truth are written in a staging folder and moved into place
+    together: stopped half way, simulate leaves no bag without truth or metadata at
+    OUTPUT (which would make the next run refuse to overwrite it), and no staging folder."""
+    from extended_tracker.sim import bag, laser
+
+    real_scans = laser.simulated_scans
+
+    def stopped(*args, **kwargs):
+        for k, item in enumerate(real_scans(*args, **kwargs)):
+            if k == 5:
+                raise KeyboardInterrupt
+            yield item
+
+    monkeypatch.setattr(laser, 'simulated_scans', stopped)
+    with pytest.raises(KeyboardInterrupt):
+        bag.write_sim_bag(tmp_path / 'sim', 'demo', seed=0, duration=2.0)
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(laser, 'simulated_scans', real_scans)
+    info = bag.write_sim_bag(tmp_path / 'sim', 'demo', seed=0, duration=2.0)
+    assert info['scans'] == 20
+    assert sorted(p.name for p in (tmp_path / 'sim').iterdir()) == [
+        'metadata.yaml', 'sim.mcap', 'truth.json']
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['sim']
 
 
 def test_results_go_between_the_readme_markers_and_nowhere_else(tmp_path, monkeypatch,

@@ -402,6 +402,57 @@ def test_cli_replay_prints_a_summary(tmp_path):
     assert again.returncode == 2 and 'refusing to overwrite' in again.stderr
 
 
+def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path):
+    """A kill (SIGTERM: a supervisor, a CI timeout) stops `simulate` mid-way with a line
+    and the status 128 + 15, its staging folder removed and nothing at OUTPUT (the next
+    run is not refused). The same handler serves every command."""
+    import signal
+    import time
+
+    exe = Path(sys.executable).with_name('extended-tracker')
+    proc = subprocess.Popen([str(exe), 'simulate', str(tmp_path / 'sim'), '--duration',
+                             '3600'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    # wait until the bag is being written (its storage file inside the staging folder)
+    deadline = time.monotonic() + 60
+    while not list(tmp_path.glob('.sim.partial-*/sim/*.mcap')):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert (proc.returncode, out, err) == (143, '', 'extended-tracker: terminated\n')
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_cleanup_failing_after_sigterm_still_ends_as_terminated(monkeypatch, capsys):
+    """SIGTERM lands anywhere, a bag writer's close half way through a record among
+    them; a cleanup that then fails replaces the exception: the command still ends with
+    the line and status of a kill, and the SIGTERM handler before it is given back."""
+    import os
+    import signal
+    import time
+
+    from extended_tracker import cli
+
+    def killed_mid_write(args):
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(10)
+        finally:
+            raise RuntimeError('writer closed half a record')
+
+    before = signal.getsignal(signal.SIGTERM)
+    monkeypatch.setattr(cli, 'cmd_simulate', killed_mid_write)
+    assert cli.main(['simulate', 'unused']) == 143
+    assert capsys.readouterr().err == 'extended-tracker: terminated\n'
+    assert signal.getsignal(signal.SIGTERM) is before
+    # without a kill, the same failure is a bug and is not hidden
+    monkeypatch.setattr(cli, 'cmd_simulate', lambda args: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        cli.main(['simulate', 'unused'])
+
+
 def test_plot_paths_get_their_folder_or_a_one_line_error(tmp_path, capsys):
     """--plot in a folder not made yet: made, as the output bag's is. A plot path that
     cannot be made (its folder is a file): a one-line error before any work, no bag."""

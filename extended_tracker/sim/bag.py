@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data
+from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data, staged_bag
 from ..errors import BagError
 from . import laser
 
@@ -19,7 +19,6 @@ SCENE_OF = {
     'walls': laser.walls_scene,
     'demo': laser.demo_scene,
 }
-
 
 def scan_ranges_bytes(msg) -> bytes:
     """A LaserScan's ranges as the float32 bytes a bag holds (for ``scan_digest``)."""
@@ -51,23 +50,26 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     store = message_typestore()
     truth = []
     digest = hashlib.sha256()
-    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
-        for scan, objs in laser.simulated_scans(sim_scene, duration, seed):
-            stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
-            msg = build_message(store, SCAN_TYPE, scan_data(scan))
-            digest.update(scan_ranges_bytes(msg))
-            writer.write(conn, stamp, store.serialize_cdr(msg, SCAN_TYPE))
-            truth.append({'stamp_ns': stamp, 'objects': [
-                {'id': o.id, 'kind': o.kind, 'centre': o.centre.tolist(),
-                 'velocity': o.velocity.tolist(), 'extent': o.extent.tolist(),
-                 'visible_beams': o.visible_beams} for o in objs]})
-    L = sim_scene.laser
-    info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(truth),
-            'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json'),
-            # the scans this truth belongs to: evaluate checks a replay holds these
-            'scan_digest': digest.hexdigest(),
-            # the region the scanner covers: evaluate scores over it
-            'view': [L.angle_min, L.angle_max, L.range_max]}
-    (out / 'truth.json').write_text(json.dumps({'info': info, 'scans': truth}))
+    # written in a staging folder and moved into place with its truth: an interrupted
+    # run leaves nothing at OUTPUT
+    with staged_bag(out) as tmp:
+        with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
+            for scan, objs in laser.simulated_scans(sim_scene, duration, seed):
+                stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
+                msg = build_message(store, SCAN_TYPE, scan_data(scan))
+                digest.update(scan_ranges_bytes(msg))
+                writer.write(conn, stamp, store.serialize_cdr(msg, SCAN_TYPE))
+                truth.append({'stamp_ns': stamp, 'objects': [
+                    {'id': o.id, 'kind': o.kind, 'centre': o.centre.tolist(),
+                     'velocity': o.velocity.tolist(), 'extent': o.extent.tolist(),
+                     'visible_beams': o.visible_beams} for o in objs]})
+        L = sim_scene.laser
+        info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(truth),
+                'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json'),
+                # the scans this truth belongs to: evaluate checks a replay holds these
+                'scan_digest': digest.hexdigest(),
+                # the region the scanner covers: evaluate scores over it
+                'view': [L.angle_min, L.angle_max, L.range_max]}
+        (tmp / 'truth.json').write_text(json.dumps({'info': info, 'scans': truth}))
     return info
