@@ -149,6 +149,7 @@ def test_simulate_command_writes_a_bag_and_its_truth(tmp_path, capsys):
     for args, fragment in ((['--duration', '0'], 'duration must be a positive'),
                            (['--duration', 'nan'], 'duration must be a positive'),
                            (['--duration', 'inf'], 'duration must be a positive'),
+                           (['--duration', '3600.1'], 'seconds up to 3600, got 3600.1'),
                            (['--seed', '-1'], 'seed must be a non-negative')):
         assert main(['simulate', str(tmp_path / 'refused')] + args) == 2
         assert fragment in capsys.readouterr().err

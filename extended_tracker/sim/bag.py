@@ -20,6 +20,12 @@ SCENE_OF = {
     'demo': laser.demo_scene,
 }
 
+# the truth is held in memory until it is written at the end: an hour (36 000 scans at
+# 10 Hz; mixed_traffic: a 231 MB bag, 0.55 GB resident, 67 s) is the most one bag holds;
+# longer runs are several bags
+MAX_DURATION = 3600.0
+
+
 def scan_ranges_bytes(msg) -> bytes:
     """A LaserScan's ranges as the float32 bytes a bag holds (for ``scan_digest``)."""
     return np.asarray(msg.ranges, dtype=np.float32).tobytes()
@@ -32,7 +38,8 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     Raises
     ------
     BagError
-        When ``output`` exists or ``scene`` is unknown.
+        When ``output`` exists, ``scene`` is unknown, or ``duration`` or ``seed`` is out
+        of range.
 
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -42,8 +49,9 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
         raise BagError(f'output {out} exists; refusing to overwrite it')
     if scene not in SCENE_OF:
         raise BagError(f'unknown scene {scene!r}; choose one of {sorted(SCENE_OF)}')
-    if not duration > 0 or duration == float('inf'):
-        raise BagError(f'duration must be a positive number of seconds, got {duration}')
+    if not 0 < duration <= MAX_DURATION:
+        raise BagError(f'duration must be a positive number of seconds up to '
+                       f'{MAX_DURATION:g}, got {duration}')
     if seed < 0:
         raise BagError(f'seed must be a non-negative integer, got {seed}')
     sim_scene = SCENE_OF[scene]()
