@@ -197,6 +197,12 @@ def open_scans(path, scan_topic: str | None = None):
         # a storage file of a ROS 2 bag: read the folder, whose metadata says how the files
         # are compressed and which others belong to the recording (split bags)
         p = p.parent
+    if p.is_dir() and not (p / 'metadata.yaml').is_file():
+        stored = sorted(f.name for f in p.iterdir() if f.suffix in ('.mcap', '.db3'))
+        raise BagError(
+            f'{p} is not a ROS 2 bag: the folder has no metadata.yaml' + (
+                f' beside {", ".join(stored)} (a recording stopped before it closed? '
+                f'`ros2 bag reindex {p}` writes it)' if stored else ''))
     try:
         reader = _open_reader(p)
     except Exception as err:  # rosbags raises several unrelated types for broken bags

@@ -86,6 +86,8 @@ def cmd_real(args) -> int:
     from .replay import replay
 
     data = Path(args.data)
+    if not data.exists():
+        raise BagError(f'--data {data} does not exist')
     if (data / 'metadata.yaml').is_file() or (data.is_file() and data.suffix == '.bag'):
         bags = [data]                              # DATA is one recording itself
     elif data.is_dir():
@@ -197,19 +199,26 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument('--quiet', action='store_true', help='no progress bar')
     r.set_defaults(func=cmd_replay)
     s = sub.add_parser('simulate', help='write a simulated scan bag with ground truth')
-    s.add_argument('output')
-    s.add_argument('--scene', choices=SCENES, default='demo')
-    s.add_argument('--seed', type=int, default=0)
-    s.add_argument('--duration', type=float, default=12.0)
+    s.add_argument('output', help='new ROS 2 bag folder (MCAP), truth.json inside it')
+    s.add_argument('--scene', choices=SCENES, default='demo',
+                   help='scripted scene (default: %(default)s)')
+    s.add_argument('--seed', type=int, default=0,
+                   help='seed of the scan noise and clutter (default: %(default)s)')
+    s.add_argument('--duration', type=float, default=12.0,
+                   help='seconds of scans at 10 Hz, at most 3600 (default: %(default)s)')
     s.set_defaults(func=cmd_simulate)
     real = sub.add_parser('real', help='replay every bag of a folder of real recordings')
-    real.add_argument('--data', default=os.path.join('..', 'shared', 'data', 'real'))
-    real.add_argument('--out', default=os.path.join('out', 'real'))
+    real.add_argument('--data', default=os.path.join('..', 'shared', 'data', 'real'),
+                      help='folder of ROS 2 bag folders and ROS 1 .bag files, or one bag '
+                           '(default: %(default)s)')
+    real.add_argument('--out', default=os.path.join('out', 'real'),
+                      help='folder for the PNGs and the replayed bags (default: '
+                           '%(default)s)')
     real.add_argument('--config', help='one config for every bag (default: the defaults, '
                                        'leg_height for the bags recorded at leg height)')
     real.set_defaults(func=cmd_real)
     e = sub.add_parser('evaluate', help='score a replayed bag against simulator truth')
-    e.add_argument('output_bag')
+    e.add_argument('output_bag', help='bag written by replay from a simulated bag')
     e.add_argument('--truth', required=True, help='truth.json written by simulate')
     e.add_argument('--plot', help='PNG of GOSPA and cardinality against time')
     e.set_defaults(func=cmd_evaluate)

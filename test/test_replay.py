@@ -286,6 +286,17 @@ def test_corrupt_and_missing_inputs_give_clear_errors(tmp_path):
     with pytest.raises(BagError):
         replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
     assert not (tmp_path / 'out').exists()
+    # a bag folder whose metadata.yaml was never written (the recorder killed), and a
+    # folder that is no bag: said so, not a rosbags FileNotFoundError
+    (tmp_path / 'in' / 'metadata.yaml').unlink()
+    with pytest.raises(BagError, match=r'no metadata.yaml beside in.mcap .*ros2 bag '
+                                       r'reindex'):
+        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    (tmp_path / 'notes').mkdir()
+    with pytest.raises(BagError, match=r'notes is not a ROS 2 bag: the folder has no '
+                                       r'metadata.yaml$'):
+        replay(tmp_path / 'notes', tmp_path / 'out', CFG, progress=False)
+    assert not (tmp_path / 'out').exists()
 
 
 def test_an_undecodable_scan_record_stops_with_its_topic(tmp_path):
@@ -523,11 +534,16 @@ def test_real_on_one_bag_replays_it_and_on_no_bags_says_so(tmp_path, capsys):
         lines = capsys.readouterr().out.splitlines()
         assert lines[1].split()[:2] == [label, '20'], lines
         assert (tmp_path / f'out_{label}' / f'{label}.png').is_file()
-    for data in ('empty', 'missing'):
-        assert main(['real', '--data', str(tmp_path / data), '--out',
-                     str(tmp_path / 'out_none')]) == 0
-        captured = capsys.readouterr()
-        assert 'no recordings at' in captured.err and not captured.out
+    assert main(['real', '--data', str(tmp_path / 'empty'), '--out',
+                 str(tmp_path / 'out_none')]) == 0
+    captured = capsys.readouterr()
+    assert 'no recordings at' in captured.err and not captured.out
+    # a path that is not there (a typo) is an error, not an empty folder
+    assert main(['real', '--data', str(tmp_path / 'missing'), '--out',
+                 str(tmp_path / 'out_none')]) == 2
+    captured = capsys.readouterr()
+    assert captured.err == f'extended-tracker: error: --data {tmp_path / "missing"} does ' \
+                           'not exist\n' and not captured.out
     assert not (tmp_path / 'out_none').exists()
 
 
