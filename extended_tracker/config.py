@@ -88,8 +88,8 @@ class PartitionConfig:
     max_sub_objects: int = _f(4, 'most objects sub-partitioning splits one cell into', '', 2,
                               20)
     prediction_partition: bool = _f(True, 'add a partition from the gates of confident tracks')
-    gate_probability: float = _f(0.999, 'chi-square gate probability of (component, cell)', '',
-                                 0.5, 1.0, lo_open=True)
+    gate_probability: float = _f(0.999, 'chi-square gate probability of (component, cell); 1: '
+                                 'no gate', '', 0.5, 1.0, lo_open=True)
 
 
 @dataclass(frozen=True)

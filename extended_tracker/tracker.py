@@ -398,7 +398,9 @@ def gate_threshold(cfg: TrackerConfig) -> float:
 
 @lru_cache(maxsize=64)                 # asked for twice a scan with the same probability
 def _chi2_2dof_ppf(p: float) -> float:
-    """``chi2.ppf(p, 2) = -2 log(1 - p)``."""
+    """``chi2.ppf(p, 2) = -2 log(1 - p)``; ``inf`` (no gate) at ``p = 1``."""
+    if p >= 1.0:
+        return float(np.inf)           # log1p(-1) would warn of a division by zero
     return float(-2.0 * np.log1p(-p))
 
 

@@ -308,3 +308,20 @@ def test_quad_form2_equals_the_matrix_product():
     z = rng.normal(size=(4, 6, 2))
     np.testing.assert_allclose(quad_form2(z, A[None]), np.einsum('jki,kil,jkl->jk', z, A, z),
                                rtol=1e-12)
+
+
+def test_the_gate_threshold_is_the_chi_square_quantile_and_1_means_no_gate():
+    """The closed form -2 log(1 - p) of the gate against scipy's chi-square quantile
+    (2 degrees of freedom), and gate_probability 1 (in its range) as no gate at all,
+    without a division-by-zero warning."""
+    import warnings
+
+    from extended_tracker.config import from_dict
+    from extended_tracker.tracker import gate_threshold
+
+    for p in (0.6, 0.9, 0.99, 0.999, 1 - 1e-9):
+        got = gate_threshold(from_dict({'partition': {'gate_probability': p}}))
+        assert got == pytest.approx(stats.chi2.ppf(p, 2), rel=1e-9)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        assert gate_threshold(from_dict({'partition': {'gate_probability': 1.0}})) == np.inf
