@@ -363,7 +363,9 @@ def bench_memory(n_scans):
             rss.append((k, _rss_mb()))
     print(f'\nresident memory over {n_scans} scans: ' + ', '.join(f'{k}: {m:.1f} MB'
                                                               for k, m in rss))
-    print(f'growth after the first 1000 scans: {rss[-1][1] - rss[1][1]:.2f} MB')
+    # growth after the first 1000 scans (caches filled), when the run is longer than that
+    k0, m0 = rss[1] if len(rss) > 2 else rss[0]
+    print(f'growth from scan {k0} to {rss[-1][0]}: {rss[-1][1] - m0:.2f} MB')
     print(f'peak resident memory of the bench process (all cases so far): '
           f'{_peak_rss_mb():.1f} MB')
 
@@ -466,14 +468,26 @@ def bench_node():
               f"{r['step_median_ms']:.2f} ms; overhead {r['overhead_median_ms']:.2f} ms")
 
 
+def _count(text: str) -> int:
+    """A whole number, 0 or more (argparse type: refused before any case runs)."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f'a whole number, 0 or more, is needed: {text!r}')
+    return n
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog='extended-tracker bench')
     p.add_argument('--quick', action='store_true', help='fewer scans per case')
-    p.add_argument('--memory', type=int, default=0, help='also run N scans for memory')
+    p.add_argument('--memory', type=_count, default=0, metavar='N',
+                   help='also run N scans for memory (growth from scan 1000 on when N > 1000)')
     p.add_argument('--png', default='out/bench/scaling.png', help='scaling curves PNG')
     p.add_argument('--profile', action='store_true',
                    help='only profile the 4-pedestrian filter step (cProfile, by function)')
-    p.add_argument('--rounds', type=int, default=5,
+    p.add_argument('--rounds', type=_count, default=5,
                    help='interleaved rounds of the target cases (0: skip them)')
     args = p.parse_args(argv)
     if args.profile:

@@ -166,3 +166,32 @@ def test_memory_run_prints_the_resident_memory_and_the_peak(capsys):
     peak = float(out.split('peak resident memory of the bench process (all cases so far): ')[1]
                  .split(' MB')[0])
     assert peak >= last - 0.05        # the high-water mark of the same figure (rounded)
+    # a run this short has no samples after the warm-up: the growth is from scan 0
+    assert 'growth from scan 0 to 2: ' in out
+
+
+def test_memory_growth_is_measured_after_the_first_1000_scans(capsys):
+    from extended_tracker.bench import bench_memory
+
+    bench_memory(1002)
+    out = capsys.readouterr().out
+    samples = out.split('resident memory over 1002 scans: ')[1].split('\n')[0].split(', ')
+    assert [s.split(':')[0] for s in samples] == ['0', '1000', '1001']
+    mb = [float(s.split(': ')[1].split(' MB')[0]) for s in samples]
+    assert f'growth from scan 1000 to 1001: {mb[2] - mb[1]:.2f} MB' in out
+
+
+@pytest.mark.parametrize('option', [['--memory', '-5'], ['--rounds', '-1'],
+                                    ['--memory', 'many']])
+def test_bench_refuses_a_bad_count_before_running_anything(option, capsys, monkeypatch):
+    """A negative or non-numeric count is a usage error at once (the memory run's
+    negative count used to crash with an IndexError after minutes of cases)."""
+    import extended_tracker.bench as bench
+    from extended_tracker import cli
+
+    monkeypatch.setattr(bench, 'machine_line', lambda: pytest.fail('a case ran'))
+    with pytest.raises(SystemExit) as stop:
+        cli.main(['bench'] + option)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option[0]}: a whole number, 0 or more, is needed: '{option[1]}'" in err
