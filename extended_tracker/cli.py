@@ -82,24 +82,37 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def _replay_output(bag: Path) -> bool:
+    """Whether ``bag`` is a ROS 2 bag folder written by ``replay`` (it holds the tracks)."""
+    from .bagio import TRACKS_TYPE
+
+    meta = bag / 'metadata.yaml'
+    try:
+        return meta.is_file() and TRACKS_TYPE in meta.read_text(errors='replace')
+    except OSError:
+        return False
+
+
 def cmd_real(args) -> int:
     from .replay import replay
 
     data = Path(args.data)
+    out = Path(args.out)
     if not data.exists():
         raise BagError(f'--data {data} does not exist')
     if (data / 'metadata.yaml').is_file() or (data.is_file() and data.suffix == '.bag'):
         bags = [data]                              # DATA is one recording itself
     elif data.is_dir():
-        # ROS 2 bag folders, and ROS 1 bag files, directly under DATA
-        bags = sorted(p for p in data.iterdir() if p.is_dir() or p.suffix == '.bag')
+        # ROS 2 bag folders, and ROS 1 bag files, directly under DATA; not the --out
+        # folder when it lies there (a PNG folder, not a bag)
+        bags = sorted(p for p in data.iterdir() if (p.is_dir() or p.suffix == '.bag')
+                      and not (out.exists() and p.resolve() == out.resolve()))
     else:
         bags = []
     if not bags:
         print(f'no recordings at {data} (ROS 2 bag folders or ROS 1 .bag files); '
               'nothing to do', file=sys.stderr)
         return 0
-    out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     given = _config(args.config) if args.config else None
     print(f'{"bag":48s} {"scans":>6s} {"det/scan":>8s} {"ids":>5s} {"moving":>6s} '
@@ -107,6 +120,11 @@ def cmd_real(args) -> int:
     failed = 0
     for bag in bags:
         label = bag.name if bag.is_dir() else bag.stem
+        if bag != data and _replay_output(bag):
+            # an earlier run's output (--out inside --data, or the same folder): replaying
+            # it again would add a NAME_tracks_tracks on every run
+            print(f'{label:48s} skipped: a replay output (it holds tracks), not a recording')
+            continue
         target = out / f'{label}_tracks'
         if target.exists():
             import shutil

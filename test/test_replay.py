@@ -547,6 +547,32 @@ def test_real_on_one_bag_replays_it_and_on_no_bags_says_so(tmp_path, capsys):
     assert not (tmp_path / 'out_none').exists()
 
 
+@pytest.mark.parametrize('out_name', ['.', 'out'])
+def test_real_run_again_with_its_output_in_the_data_folder_replays_only_recordings(
+        tmp_path, capsys, out_name):
+    """--out the --data folder itself, or a folder inside it: a second run skips the
+    first run's output bags with a line each (they hold the tracks) and the --out
+    folder, instead of replaying them into NAME_tracks_tracks or failing on the PNG
+    folder as a broken bag."""
+    from extended_tracker.cli import main
+
+    data = tmp_path / 'data'
+    write_ros2(data / 'one', seconds=1.0)
+    out = data / out_name
+    for run in (1, 2):
+        assert main(['real', '--data', str(data), '--out', str(out)]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        assert lines[1].split()[:2] == ['one', '10'], lines
+        if run == 2 and out_name == '.':
+            assert lines[2] == f'{"one_tracks":48s} skipped: a replay output (it holds ' \
+                               'tracks), not a recording'
+            assert len(lines) == 4
+        else:                    # the --out folder inside --data is no candidate
+            assert len(lines) == 3 and lines[2].startswith('bags and PNGs in')
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ['one.png', 'one_tracks'] + (['one'] if out_name == '.' else []))
+
+
 def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
     """A folder that is no bag (or a broken one) gets a line saying why; the bags after it
     (folders, and ROS 1 files beside them) are still replayed, and the exit status says
