@@ -60,8 +60,35 @@ def load_yaml(path) -> TrackerConfig:
             raise ConfigError(f'{"/".join(names)} in {path}: ros__parameters must be a '
                               f'mapping, got {params!r}')
         flat.update(_flattened(params, ''))
-    return from_flat({k: v for k, v in flat.items() if k not in ROS_NODE_PARAMETERS
-                      and not k.startswith(ROS_NODE_PREFIXES)})
+    flat = {k: v for k, v in flat.items() if k not in ROS_NODE_PARAMETERS
+            and not k.startswith(ROS_NODE_PREFIXES)}
+    _as_ros_types(flat, path)
+    return from_flat(flat)
+
+
+def _as_ros_types(flat: dict, path) -> None:
+    """
+    Refuse what the node refuses in a parameter file and the plain sections take: a
+    whole number written without its decimal point for a double parameter (ROS types
+    parameters strictly; the node stops at start-up on it), so that a file a replay
+    accepts also starts the node.
+    """
+    from .config import iter_leaves
+
+    def whole(v):
+        return isinstance(v, int) and not isinstance(v, bool)
+
+    for name, f, _ in iter_leaves(TrackerConfig()):
+        value = flat.get(name)
+        kind = f.type if isinstance(f.type, str) else f.type.__name__
+        if kind == 'float' and whole(value):
+            raise ConfigError(f'{name} in {path} must be a double (a whole number needs its '
+                              f'decimal point: {value}.0, not {value}), as the node '
+                              'takes it')
+        if kind == 'list' and isinstance(value, list) and any(map(whole, value)):
+            raise ConfigError(f'{name} in {path} must be a list of doubles (whole numbers '
+                              'need their decimal points: [1.0, 2.0], not [1, 2]), as the '
+                              'node takes it')
 
 
 def _ros_entries(data: dict, names: tuple):

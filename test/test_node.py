@@ -635,6 +635,46 @@ def test_process_refuses_an_invalid_parameter_with_the_reason():
     assert "model.mode must be one of ('cphd', 'phd'), got 'kalman'" in done.stderr
 
 
+def test_a_whole_number_for_a_double_parameter_is_one_line_in_the_node_and_offline(tmp_path):
+    """rclpy types parameters strictly: `p_survival: 1` (no decimal point) for a double
+    stopped the node with a traceback from its constructor. It is now the one-line
+    invalid-configuration error with the fix, status 2, on the command line and in a
+    parameter file alike; the offline tools refuse the same parameter file the same way
+    (so a file a replay accepts also starts the node), and plain config sections still
+    take a whole number."""
+    import os
+    import subprocess
+
+    def node(*ros_args):
+        return subprocess.run([_node_exe(), '--ros-args', *ros_args], capture_output=True,
+                              text=True, timeout=30, env=dict(os.environ))
+
+    params = tmp_path / 'params.yaml'
+    params.write_text('extended_tracker:\n  ros__parameters:\n    model:\n'
+                      '      p_survival: 1\n')
+    for done in (node('-p', 'model.p_survival:=1'), node('--params-file', str(params))):
+        assert done.returncode == 2 and 'Traceback' not in done.stderr, done.stderr
+        assert ('invalid configuration: model.p_survival must be a double (a whole number '
+                'needs its decimal point: 2.0, not 2)') in done.stderr
+    done = node('-p', 'birth.regions:=[1, 2, 0]')
+    assert done.returncode == 2 and 'Traceback' not in done.stderr, done.stderr
+    assert 'birth.regions must be a list of doubles (whole numbers need their decimal ' \
+           'points' in done.stderr
+    done = node('-p', 'model.n_max:=40.0')
+    assert done.returncode == 2 and 'model.n_max must be an integer;' in done.stderr
+    with pytest.raises(ConfigError, match=r'model.p_survival in .*params.yaml must be a '
+                                          r'double \(a whole number needs its decimal '
+                                          r'point: 1.0, not 1\)'):
+        load_yaml(params)
+    params.write_text('/**:\n  ros__parameters:\n    birth:\n      regions: [1, 2, 0]\n')
+    with pytest.raises(ConfigError, match='birth.regions in .* must be a list of doubles'):
+        load_yaml(params)
+    plain = tmp_path / 'plain.yaml'
+    plain.write_text('model:\n  p_survival: 1\nbirth:\n  regions: [1, 2, 0]\n')
+    assert load_yaml(plain).model.p_survival == 1 and load_yaml(plain).birth.regions == [
+        1, 2, 0]
+
+
 def test_node_overhead_bench_with_and_without_a_marker_listener(marker_builds):
     """The bench's node figure: with a listener the callback builds markers, without it
     not; both report a callback time over the step's."""

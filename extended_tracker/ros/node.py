@@ -23,7 +23,7 @@ from rcl_interfaces.msg import (
     FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult,
 )
 import rclpy
-from rclpy.exceptions import ParameterUninitializedException
+from rclpy.exceptions import InvalidParameterTypeException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
@@ -76,16 +76,35 @@ def parameter_descriptors(cfg: TrackerConfig | None = None) -> dict:
     return out
 
 
+def type_error(name: str, expected: int, err: Exception) -> str:
+    """The start-up error for a parameter given with a type the node does not take."""
+    want = {ParameterType.PARAMETER_DOUBLE: 'a double',
+            ParameterType.PARAMETER_INTEGER: 'an integer',
+            ParameterType.PARAMETER_BOOL: 'a bool', ParameterType.PARAMETER_STRING: 'a string',
+            ParameterType.PARAMETER_DOUBLE_ARRAY: 'a list of doubles'}[expected]
+    hint = {ParameterType.PARAMETER_DOUBLE: ' (a whole number needs its decimal point: 2.0, '
+                                            'not 2)',
+            ParameterType.PARAMETER_DOUBLE_ARRAY: ' (whole numbers need their decimal '
+                                                  'points: [1.0, 2.0], not [1, 2])'}
+    said = str(err).removesuffix(f': {name}')        # rclpy's text, without the name again
+    return f'{name} must be {want}{hint.get(expected, "")}; {said}'
+
+
 class TrackerNode(Node):
     """Extended object tracker on one LaserScan topic."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
         for name, (default, desc) in parameter_descriptors().items():
-            if isinstance(default, list):
-                self.declare_parameter(name, rclpy.Parameter.Type.DOUBLE_ARRAY, desc)
-            else:
-                self.declare_parameter(name, default, desc)
+            try:
+                if isinstance(default, list):
+                    self.declare_parameter(name, rclpy.Parameter.Type.DOUBLE_ARRAY, desc)
+                else:
+                    self.declare_parameter(name, default, desc)
+            except InvalidParameterTypeException as err:
+                # rclpy types parameters strictly: a 1 in a parameter file for a double
+                # raised a traceback from the constructor. Said in one line, with the fix.
+                raise ConfigError(type_error(name, desc.type, err)) from err
         self.cfg = self._read_config()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.state = PipelineState.initial(self.cfg)
