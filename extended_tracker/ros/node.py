@@ -76,7 +76,7 @@ def parameter_descriptors(cfg: TrackerConfig | None = None) -> dict:
     return out
 
 
-def type_error(name: str, expected: int, err: Exception) -> str:
+def _type_error(name: str, expected: int, err: Exception) -> str:
     """The start-up error for a parameter given with a type the node does not take."""
     want = {ParameterType.PARAMETER_DOUBLE: 'a double',
             ParameterType.PARAMETER_INTEGER: 'an integer',
@@ -104,7 +104,7 @@ class TrackerNode(Node):
             except InvalidParameterTypeException as err:
                 # rclpy types parameters strictly: a 1 in a parameter file for a double
                 # raised a traceback from the constructor. Said in one line, with the fix.
-                raise ConfigError(type_error(name, desc.type, err)) from err
+                raise ConfigError(_type_error(name, desc.type, err)) from err
         self.cfg = self._read_config()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.state = PipelineState.initial(self.cfg)
