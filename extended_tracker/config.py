@@ -249,7 +249,7 @@ class TrackerConfig:
 
 def _check_leaf(name: str, value: Any, f) -> None:
     meta = f.metadata
-    expected = f.type if isinstance(f.type, str) else f.type.__name__
+    expected = leaf_kind(f)
     if expected == 'bool':
         if not isinstance(value, bool):
             raise ConfigError(f'{name} must be true or false, got {value!r}')
@@ -296,6 +296,12 @@ def validate(cfg: TrackerConfig) -> None:
     if cfg.partition.d_min > cfg.partition.d_max:
         raise ConfigError(f'partition.d_min ({cfg.partition.d_min}) must not exceed '
                           f'partition.d_max ({cfg.partition.d_max})')
+
+
+def leaf_kind(f) -> str:
+    """A leaf field's type as a name: 'bool', 'int', 'float', 'str' or 'list' (the
+    annotations are strings under ``from __future__ import annotations``)."""
+    return f.type if isinstance(f.type, str) else f.type.__name__
 
 
 def iter_leaves(cfg, prefix=''):

@@ -73,14 +73,14 @@ def _as_ros_types(flat: dict, path) -> None:
     parameters strictly; the node stops at start-up on it), so that a file a replay
     accepts also starts the node.
     """
-    from .config import iter_leaves
+    from .config import iter_leaves, leaf_kind
 
     def whole(v):
         return isinstance(v, int) and not isinstance(v, bool)
 
     for name, f, _ in iter_leaves(TrackerConfig()):
         value = flat.get(name)
-        kind = f.type if isinstance(f.type, str) else f.type.__name__
+        kind = leaf_kind(f)
         if kind == 'float' and whole(value):
             raise ConfigError(f'{name} in {path} must be a double (a whole number needs its '
                               f'decimal point: {value}.0, not {value}), as the node '

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from extended_tracker.config import from_dict
+from extended_tracker.config import from_dict, leaf_kind
 from extended_tracker.pipeline import PipelineState, reset, step
 from extended_tracker.sensing.scan import Header, ScanData, Stamp
 from extended_tracker.sim.laser import mixed_traffic_scene, simulate, tutorial_scene
@@ -292,7 +292,7 @@ def _edge_values(f, default):
     """The values a config leaf may take at the edges of its declared range, and one
     inside (a leaf without a range keeps its default; a bool flips; a choice varies)."""
     meta = f.metadata
-    kind = f.type if isinstance(f.type, str) else f.type.__name__
+    kind = leaf_kind(f)
     if kind == 'bool':
         return [not default]
     if kind == 'str':

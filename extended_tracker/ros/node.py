@@ -32,7 +32,7 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
-from ..config import from_flat, iter_leaves, to_flat, TrackerConfig
+from ..config import from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig
 from ..configio import NODE_NAME
 from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
@@ -59,7 +59,7 @@ def parameter_descriptors(cfg: TrackerConfig | None = None) -> dict:
     out = {}
     for name, f, value in iter_leaves(cfg):
         meta = f.metadata
-        kind = f.type if isinstance(f.type, str) else f.type.__name__
+        kind = leaf_kind(f)
         desc = ParameterDescriptor(name=name, type=_PTYPE[kind])
         unit = f' [{meta["unit"]}]' if meta['unit'] else ''
         text = meta['description'] + unit
