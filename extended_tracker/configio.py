@@ -66,6 +66,15 @@ def load_yaml(path) -> TrackerConfig:
     return from_flat(flat)
 
 
+def double_hint(value=2) -> str:
+    """How to write ``value`` for a double parameter (ROS refuses ``2`` for one)."""
+    return f'a whole number needs its decimal point: {value}.0, not {value}'
+
+
+# the same for a list of doubles
+DOUBLE_LIST_HINT = 'whole numbers need their decimal points: [1.0, 2.0], not [1, 2]'
+
+
 def _as_ros_types(flat: dict, path) -> None:
     """
     Refuse what the node refuses in a parameter file and the plain sections take: a
@@ -82,13 +91,11 @@ def _as_ros_types(flat: dict, path) -> None:
         value = flat.get(name)
         kind = leaf_kind(f)
         if kind == 'float' and whole(value):
-            raise ConfigError(f'{name} in {path} must be a double (a whole number needs its '
-                              f'decimal point: {value}.0, not {value}), as the node '
-                              'takes it')
+            raise ConfigError(f'{name} in {path} must be a double ({double_hint(value)}), '
+                              'as the node takes it')
         if kind == 'list' and isinstance(value, list) and any(map(whole, value)):
-            raise ConfigError(f'{name} in {path} must be a list of doubles (whole numbers '
-                              'need their decimal points: [1.0, 2.0], not [1, 2]), as the '
-                              'node takes it')
+            raise ConfigError(f'{name} in {path} must be a list of doubles '
+                              f'({DOUBLE_LIST_HINT}), as the node takes it')
 
 
 def _ros_entries(data: dict, names: tuple):

@@ -33,7 +33,7 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from ..config import from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig
-from ..configio import NODE_NAME
+from ..configio import double_hint, DOUBLE_LIST_HINT, NODE_NAME
 from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
 from ..pipeline import held, PipelineState, reset, step
@@ -82,10 +82,8 @@ def _type_error(name: str, expected: int, err: Exception) -> str:
             ParameterType.PARAMETER_INTEGER: 'an integer',
             ParameterType.PARAMETER_BOOL: 'a bool', ParameterType.PARAMETER_STRING: 'a string',
             ParameterType.PARAMETER_DOUBLE_ARRAY: 'a list of doubles'}[expected]
-    hint = {ParameterType.PARAMETER_DOUBLE: ' (a whole number needs its decimal point: 2.0, '
-                                            'not 2)',
-            ParameterType.PARAMETER_DOUBLE_ARRAY: ' (whole numbers need their decimal '
-                                                  'points: [1.0, 2.0], not [1, 2])'}
+    hint = {ParameterType.PARAMETER_DOUBLE: f' ({double_hint()})',
+            ParameterType.PARAMETER_DOUBLE_ARRAY: f' ({DOUBLE_LIST_HINT})'}
     said = str(err).removesuffix(f': {name}')        # rclpy's text, without the name again
     return f'{name} must be {want}{hint.get(expected, "")}; {said}'
 
