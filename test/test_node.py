@@ -569,6 +569,15 @@ def _node_exe():
     return str(Path(sys.prefix) / 'lib' / 'extended_tracker' / 'tracker_node')
 
 
+def _node_until_it_ends(*ros_args):
+    """Run the installed node with ``--ros-args ...`` to its end (a refused start)."""
+    import os
+    import subprocess
+
+    return subprocess.run([_node_exe(), '--ros-args', *ros_args], capture_output=True,
+                          text=True, timeout=30, env=dict(os.environ))
+
+
 @pytest.mark.parametrize('sig', ['SIGTERM', 'SIGINT'])
 def test_process_shuts_down_cleanly(sig):
     import os
@@ -626,11 +635,7 @@ def test_a_stop_asked_for_while_starting_ends_quietly(monkeypatch):
 
 
 def test_process_refuses_an_invalid_parameter_with_the_reason():
-    import os
-    import subprocess
-
-    done = subprocess.run([_node_exe(), '--ros-args', '-p', 'model.mode:=kalman'],
-                          capture_output=True, text=True, timeout=30, env=dict(os.environ))
+    done = _node_until_it_ends('-p', 'model.mode:=kalman')
     assert done.returncode == 2
     assert "model.mode must be one of ('cphd', 'phd'), got 'kalman'" in done.stderr
 
@@ -642,13 +647,7 @@ def test_a_whole_number_for_a_double_parameter_is_one_line_in_the_node_and_offli
     parameter file alike; the offline tools refuse the same parameter file the same way
     (so a file a replay accepts also starts the node), and plain config sections still
     take a whole number."""
-    import os
-    import subprocess
-
-    def node(*ros_args):
-        return subprocess.run([_node_exe(), '--ros-args', *ros_args], capture_output=True,
-                              text=True, timeout=30, env=dict(os.environ))
-
+    node = _node_until_it_ends
     params = tmp_path / 'params.yaml'
     params.write_text('extended_tracker:\n  ros__parameters:\n    model:\n'
                       '      p_survival: 1\n')
