@@ -493,6 +493,9 @@ def main(argv=None) -> int:
     if args.profile:
         bench_profile()
         return 0
+    from .plotting import image_path
+
+    png = image_path(args.png)       # checked now, not after minutes of timing
     scans = 60 if args.quick else 300
     print(machine_line())
     print(f'float64 exp: {exp_ns():.1f} ns per element')
@@ -509,7 +512,7 @@ def main(argv=None) -> int:
     if args.rounds > 0:
         bench_targets(args.rounds, scans)
     bench_node()
-    bench_scaling(args.png, 20 if args.quick else 60, rows, rows[0][3])
+    bench_scaling(png, 20 if args.quick else 60, rows, rows[0][3])
     if args.memory:
         bench_memory(args.memory)
     print(f'\nreference workload: {reference_ms():.2f} ms at the end')

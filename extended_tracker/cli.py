@@ -158,7 +158,12 @@ def cmd_real(args) -> int:
 def cmd_evaluate(args) -> int:
     from .evaluate import evaluate_bag, GOSPA_C, GOSPA_P
 
-    score, per, stamps = evaluate_bag(args.output_bag, args.truth, args.plot)
+    plot = None
+    if args.plot:
+        from .plotting import image_path
+
+        plot = image_path(args.plot)            # the name written (a .png added)
+    score, per, stamps = evaluate_bag(args.output_bag, args.truth, plot)
     print(f'GOSPA (alpha 2, c {GOSPA_C:g} m, p {GOSPA_P:g}, Gaussian-Wasserstein), '
           f'{score.scans} scans')
     print(f'mean GOSPA        {score.gospa_mean:.3f} m')
@@ -171,8 +176,8 @@ def cmd_evaluate(args) -> int:
     print('over time (per second): ' + '  '.join(
         f'{int(s)}s {np.mean([g.total for g, tt in zip(per, t) if int(tt) == s]):.2f}'
         for s in range(int(t[-1]) + 1)))
-    if args.plot:
-        print(f'plot              {args.plot}')
+    if plot:
+        print(f'plot              {plot}')
     return 0
 
 
@@ -213,7 +218,8 @@ def build_parser() -> argparse.ArgumentParser:
                                     '(the entries for the extended_tracker node)')
     r.add_argument('--preset', choices=sorted(PRESETS),
                    help='named changes from the defaults (leg_height: scanner at leg height)')
-    r.add_argument('--plot', help='write a PNG of the run')
+    r.add_argument('--plot', help='write a picture of the run (PNG; .svg, .pdf, ... by '
+                                 'the suffix)')
     r.add_argument('--quiet', action='store_true', help='no progress bar')
     r.set_defaults(func=cmd_replay)
     s = sub.add_parser('simulate', help='write a simulated scan bag with ground truth')
@@ -238,7 +244,8 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser('evaluate', help='score a replayed bag against simulator truth')
     e.add_argument('output_bag', help='bag written by replay from a simulated bag')
     e.add_argument('--truth', required=True, help='truth.json written by simulate')
-    e.add_argument('--plot', help='PNG of GOSPA and cardinality against time')
+    e.add_argument('--plot', help='picture of GOSPA and cardinality against time (PNG; '
+                                 '.svg, .pdf, ... by the suffix)')
     e.set_defaults(func=cmd_evaluate)
     res = sub.add_parser('results', help='run the scenario suite (CPHD/PHD x p_D models)')
     res.add_argument('--readme', help='write the table into this README between markers')

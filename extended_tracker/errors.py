@@ -17,3 +17,7 @@ class ScanError(ExtendedTrackerError, ValueError):
 
 class BagError(ExtendedTrackerError):
     """A bag cannot be read or written (missing, corrupt, no LaserScan topic, ...)."""
+
+
+class PlotError(ExtendedTrackerError, ValueError):
+    """A picture cannot be written where asked (a folder, an image format not known)."""

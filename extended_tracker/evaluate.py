@@ -171,7 +171,8 @@ def evaluate_bag(output_bag, truth_path, plot=None):
     """
     Score the ``/tracks`` of a replayed bag against a simulator ``truth.json``, over the
     region the scanner covers when the truth file gives it (``info.view``, see
-    :func:`in_view`), as :func:`run_scenario` does.
+    :func:`in_view`), as :func:`run_scenario` does. ``plot`` is checked as
+    :func:`plotting.image_path` checks it before the bag is read.
     """
     from rosbags.rosbag2 import Reader
 
@@ -187,7 +188,9 @@ def evaluate_bag(output_bag, truth_path, plot=None):
                f'extended-tracker simulate): {err!r}')
         raise BagError(msg) from err
     if plot:
-        Path(plot).parent.mkdir(parents=True, exist_ok=True)
+        from .plotting import image_path
+
+        plot = image_path(plot)
     store = message_typestore()
     truth_seq, est_seq, stamps, counts = [], [], [], []
     try:

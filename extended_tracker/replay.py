@@ -138,6 +138,9 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     BagError
         When the output exists, or the input is missing, broken, has no usable topic or
         no scans on it.
+    PlotError
+        When ``plot_path`` is a folder or not an image file name
+        (:func:`plotting.image_path`); checked before any scan is read.
 
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -145,8 +148,10 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     out = Path(output_path)
     if out.exists():
         raise BagError(f'output {out} exists; refusing to overwrite it')
-    if plot_path:                         # its folder now: not found only after the run
-        Path(plot_path).parent.mkdir(parents=True, exist_ok=True)
+    if plot_path:             # checked, its folder made: not found wanting after the run
+        from .plotting import image_path
+
+        plot_path = image_path(plot_path)
     reader, conns = open_scans(input_path, scan_topic)
     total = sum(c.msgcount for c in conns)
     topic = conns[0].topic

@@ -195,3 +195,17 @@ def test_bench_refuses_a_bad_count_before_running_anything(option, capsys, monke
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert f"argument {option[0]}: a whole number, 0 or more, is needed: '{option[1]}'" in err
+
+
+@pytest.mark.parametrize('png, why', [('.', 'is a folder'), ('s.pgf', 'not an image format')])
+def test_bench_refuses_a_scaling_picture_name_before_running_anything(png, why, capsys,
+                                                                      monkeypatch, tmp_path):
+    """The scaling PNG is drawn last: a name savefig cannot write ended minutes of cases
+    in a traceback."""
+    import extended_tracker.bench as bench
+    from extended_tracker import cli
+
+    monkeypatch.setattr(bench, 'machine_line', lambda: pytest.fail('a case ran'))
+    assert cli.main(['bench', '--png', str(tmp_path / png)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith('extended-tracker: error: plot ') and why in err, err

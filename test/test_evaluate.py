@@ -36,6 +36,25 @@ def test_replayed_bag_scores_against_its_truth(tmp_path):
     assert 'mean GOSPA' in done.stdout and 'id switches       0' in done.stdout
 
 
+def test_evaluate_checks_its_plot_name_before_reading_the_bag(tmp_path, capsys):
+    """A folder for --plot: refused in one line before the bag is read (it is not even
+    there); a name without a suffix is written as .png and printed as such."""
+    from extended_tracker.cli import main
+
+    (tmp_path / 'truth.json').write_text('{"scans": []}')
+    assert main(['evaluate', str(tmp_path / 'no_bag'), '--truth', str(tmp_path / 'truth.json'),
+                 '--plot', str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f'extended-tracker: error: plot {tmp_path} is a folder: name an image '
+                   f'file, e.g. {tmp_path / "run.png"}\n')
+    write_sim_bag(tmp_path / 'scans', 'occlusion', seed=0, duration=1.0)
+    replay(tmp_path / 'scans', tmp_path / 'out', from_dict({}), progress=False)
+    assert main(['evaluate', str(tmp_path / 'out'), '--truth',
+                 str(tmp_path / 'scans' / 'truth.json'), '--plot', str(tmp_path / 'g')]) == 0
+    assert f'plot              {tmp_path / "g.png"}\n' in capsys.readouterr().out
+    assert (tmp_path / 'g.png').stat().st_size > 10_000
+
+
 def test_scan_shadow_beats_constant_pd_on_the_tutorial_scenario():
     shadow, _ = run_scenario('tutorial', VARIANTS['CPHD, scan shadow'])
     constant, _ = run_scenario('tutorial', VARIANTS['CPHD, constant p_D'])

@@ -482,6 +482,42 @@ def test_plot_paths_get_their_folder_or_a_one_line_error(tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1 and not (tmp_path / 'out2').exists()
 
 
+@pytest.mark.parametrize('name, why', [('folder', 'is a folder: name an image file'),
+                                       ('run.xyz', "'.xyz' is not an image format"),
+                                       ('run.pgf', "'.pgf' is not an image format")])
+def test_a_plot_name_no_picture_can_have_is_refused_before_the_replay(tmp_path, capsys,
+                                                                       monkeypatch, name,
+                                                                       why):
+    """A folder, or a suffix savefig cannot write (pgf needs LaTeX): a one-line error
+    before a scan is read, no bag; these ended a whole replay in savefig's traceback."""
+    import extended_tracker.replay as replay_mod
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'in', seconds=0.5)
+    (tmp_path / 'folder').mkdir()
+    monkeypatch.setattr(replay_mod, 'open_scans', lambda *a: pytest.fail('the bag was read'))
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out'), '--plot',
+                 str(tmp_path / name)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f'extended-tracker: error: plot {tmp_path / name}') and why in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / 'out').exists()
+
+
+def test_a_plot_name_without_a_suffix_is_written_as_png_and_said_so(tmp_path, capsys):
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'in', seconds=0.5)
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out'), '--quiet',
+                 '--plot', str(tmp_path / 'run')]) == 0
+    assert f'plot             {tmp_path / "run.png"}\n' in capsys.readouterr().out
+    assert (tmp_path / 'run.png').read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    assert not (tmp_path / 'run').exists()
+    # another format by its suffix, any case
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out2'), '--quiet',
+                 '--plot', str(tmp_path / 'run.SVG')]) == 0
+    assert (tmp_path / 'run.SVG').read_text().lstrip().startswith('<?xml')
+
+
 def test_cli_replay_with_a_preset(tmp_path, capsys):
     from extended_tracker.cli import main
 
