@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Hashable
+import re
+
 import yaml
 
 from .config import from_dict, from_flat, TrackerConfig
@@ -13,6 +16,55 @@ NODE_NAME = 'extended_tracker'
 # parameter file may set them, and the offline tools pass over them
 ROS_NODE_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 ROS_NODE_PREFIXES = ('qos_overrides.',)
+
+
+class _Loader(yaml.SafeLoader):
+    """
+    PyYAML's safe loader reading numbers and repeated keys as ROS 2 reads a parameter
+    file (rcl_yaml_param_parser), so that a file the node takes, the offline tools take
+    the same way:
+
+    - a plain scalar ``strtod`` reads whole is a number: ``1e-5`` and ``2E+0`` are
+      doubles (YAML 1.1, PyYAML's, wants a decimal point and made them strings);
+    - ``y``, ``Y``, ``n`` and ``N`` are booleans, as ``yes`` and ``no`` are;
+    - a key written twice in one mapping merges: a repeated section or node entry adds
+      its parameters, a parameter given twice takes the later value (PyYAML kept only
+      the later mapping, dropping what the earlier one set).
+    """
+
+    bool_values = {**yaml.SafeLoader.bool_values, 'y': True, 'n': False}
+
+    def construct_mapping(self, node, deep=False):
+        self.flatten_mapping(node)
+        out = {}
+        for key_node, value_node in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if not isinstance(key, Hashable):
+                raise yaml.constructor.ConstructorError(
+                    'while constructing a mapping', node.start_mark, 'found unhashable key',
+                    key_node.start_mark)
+            value = self.construct_object(value_node, deep=deep)
+            old = out.get(key)
+            out[key] = _merged(old, value) if isinstance(old, dict) else value
+        return out
+
+
+def _merged(old: dict, new):
+    """``new`` over ``old`` as a repeated key: mappings merged key by key, else ``new``."""
+    if not isinstance(new, dict):
+        return new
+    out = dict(old)
+    for k, v in new.items():
+        out[k] = _merged(out[k], v) if isinstance(out.get(k), dict) else v
+    return out
+
+
+_Loader.add_constructor('tag:yaml.org,2002:map', _Loader.construct_mapping)
+_Loader.add_implicit_resolver('tag:yaml.org,2002:bool', re.compile(r'^[yYnN]$'), list('yYnN'))
+# decimal numbers with an exponent and no point (the YAML 1.1 resolver takes the others)
+_Loader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$'), list('-+0123456789'))
 
 
 def load_yaml(path) -> TrackerConfig:
@@ -34,9 +86,10 @@ def load_yaml(path) -> TrackerConfig:
     """
     try:
         with open(path, encoding='utf-8') as fh:
-            data = yaml.safe_load(fh) or {}
+            data = yaml.load(fh, Loader=_Loader) or {}       # noqa: S506 (a safe loader)
     except (OSError, yaml.YAMLError) as err:
-        msg = f'cannot read config {path}: {err}'
+        # PyYAML's messages run over several lines (problem, context, position): one
+        msg = f'cannot read config {path}: {" ".join(str(err).split())}'
         raise ConfigError(msg) from err
     if not isinstance(data, dict):
         raise ConfigError(f'config {path} must be a mapping, got {type(data).__name__}')

@@ -60,6 +60,33 @@ def test_yaml_errors_are_config_errors(tmp_path):
     lst.write_text('- 1\n- 2\n')
     with pytest.raises(ConfigError, match='must be a mapping'):
         load_yaml(lst)
+    # one line, with the position: the command line prints it as one error line
+    bad.write_text('model: {mode: phd}\n\tx: 1\n')
+    with pytest.raises(ConfigError) as err:
+        load_yaml(bad)
+    assert '\n' not in str(err.value) and 'line 2, column 1' in str(err.value)
+    bad.write_text('model:\n  ? [1, 2]\n  : 3\n')
+    with pytest.raises(ConfigError, match='found unhashable key'):
+        load_yaml(bad)
+
+
+def test_plain_yaml_reads_numbers_and_repeated_sections_as_a_parameter_file_does(tmp_path):
+    """The plain sections are read with the parameter file's rules (test_node holds those
+    to the node's own reading): exponents are numbers, y/n booleans, a section written
+    twice merged with the later value winning. PyYAML alone refused 1e-5 as a string and
+    kept only the second model section, dropping the first one's n_max."""
+    path = tmp_path / 'c.yaml'
+    path.write_text('model:\n  n_max: 30\n  mode: cphd\nreduction: {prune_weight: 1e-5}\n'
+                    'background: {enabled: n}\nmodel:\n  mode: phd\n')
+    cfg = load_yaml(path)
+    assert (cfg.model.n_max, cfg.model.mode) == (30, 'phd')
+    assert cfg.reduction.prune_weight == 1e-5 and cfg.background.enabled is False
+    path.write_text('model: {clutter_rate: 3E1, rho: -1e+0}\n')
+    with pytest.raises(ConfigError, match='model.rho must be > 0'):   # read as a number
+        load_yaml(path)
+    path.write_text('model: {clutter_rate: 3E1}\nbirth: {regions: [1e0, 2, 5e-1]}\n')
+    cfg = load_yaml(path)
+    assert cfg.model.clutter_rate == 30.0 and cfg.birth.regions == [1.0, 2.0, 0.5]
 
 
 def test_presets_and_their_yaml_files_agree():

@@ -438,6 +438,32 @@ robot1:
   ros__parameters:
     range_max: 30.0
 """,
+    # scalars as rcl reads them: exponents without a decimal point are doubles (strtod),
+    # y and n booleans
+    'scalars': """
+/**:
+  ros__parameters:
+    background: {enabled: n}
+    partition.sub_partition: N
+    reduction:
+      prune_weight: 1e-5
+      fuse_weight: 2E+0
+    birth.regions: [1e0, -2.5, 3e-1]
+""",
+    # a section and the node's entry written twice: rcl merges them, the later value of a
+    # parameter over the earlier one
+    'repeated': """
+/**:
+  ros__parameters:
+    model:
+      mode: phd
+      n_max: 30
+    model:
+      n_max: 25
+/**:
+  ros__parameters:
+    partition.d_max: 2.5
+""",
 }
 
 
@@ -448,7 +474,7 @@ def test_offline_tools_read_a_node_parameter_file_as_the_node_does(tmp_path, nam
     path = tmp_path / 'robot.yaml'
     path.write_text(ROBOT_PARAMS[namespace])
     args = ['--ros-args', '--params-file', str(path)]
-    if namespace != 'root':
+    if namespace.startswith('robot'):
         args += ['-r', f'__ns:=/{namespace}']
     h = NodeHarness(args=args)
     try:
