@@ -595,13 +595,45 @@ def _node_exe():
     return str(Path(sys.prefix) / 'lib' / 'extended_tracker' / 'tracker_node')
 
 
-def _node_until_it_ends(*ros_args):
-    """Run the installed node with ``--ros-args ...`` to its end (a refused start)."""
+def _node_until_it_ends(*ros_args, ros=True):
+    """Run the installed node with ``--ros-args ...`` (with ``ros=False``: with the
+    arguments as given) to its end (a refused start)."""
     import os
     import subprocess
 
-    return subprocess.run([_node_exe(), '--ros-args', *ros_args], capture_output=True,
-                          text=True, timeout=30, env=dict(os.environ))
+    argv = ['--ros-args', *ros_args] if ros else list(ros_args)
+    return subprocess.run([_node_exe(), *argv], capture_output=True, text=True, timeout=30,
+                          env=dict(os.environ))
+
+
+def test_node_help_prints_its_usage_without_starting():
+    done = _node_until_it_ends('--help', ros=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith('usage: tracker_node [--ros-args')
+    for name in ('scan (sensor_msgs/LaserScan)', 'tracks/markers', 'tracks/diagnostics',
+                 '~/reset', 'config/tracker.yaml'):
+        assert name in done.stdout, name
+    assert 'tracking' not in done.stderr                  # no node was made
+
+
+@pytest.mark.parametrize('argv, why', [
+    # an option given without --ros-args: rclpy ignored it and the node ran on defaults
+    (['-p', 'model.mode:=phd'], "unexpected arguments '-p model.mode:=phd': node options "
+                                'go after --ros-args'),
+    (['--ros-args', '--params-file', '/no/such/params.yaml'],
+     "Couldn't parse params file: '--params-file /no/such/params.yaml'"),
+    (['--ros-args', '-r', 'scan'], "Couldn't parse remap rule: '-r scan'"),
+])
+def test_a_command_line_rcl_refuses_is_one_fatal_line(argv, why):
+    """rcl's reason for refusing the ROS arguments was a traceback from rclpy.init with
+    status 1."""
+    done = _node_until_it_ends(*argv, ros=False)
+    assert done.returncode == 2, done.stderr
+    assert 'Traceback' not in done.stderr and why in done.stderr, done.stderr
+    if argv[0] == '--ros-args':
+        assert 'cannot start: ' in done.stderr
+    fatal = [line for line in done.stderr.splitlines() if '[FATAL]' in line]
+    assert len(fatal) == 1 and why in fatal[0]
 
 
 @pytest.mark.parametrize('sig', ['SIGTERM', 'SIGINT'])

@@ -14,6 +14,7 @@ calls.
 from __future__ import annotations
 
 import difflib
+import sys
 import threading
 import time
 
@@ -25,6 +26,7 @@ from rcl_interfaces.msg import (
 import rclpy
 from rclpy.exceptions import InvalidParameterTypeException, ParameterUninitializedException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.signals import SignalHandlerOptions
@@ -265,6 +267,35 @@ class TrackerNode(Node):
 #: how often the spin loop looks for a stop request (a signal), s
 STOP_POLL_S = 0.1
 
+USAGE = f"""usage: tracker_node [--ros-args [-p NAME:=VALUE] [--params-file FILE] [-r scan:=TOPIC] ...]
+
+Tracks pedestrians, bicycles and cars in a sensor_msgs/LaserScan topic with a GGIW-CPHD
+filter (the extended_tracker package).
+
+  subscribes  scan (sensor_msgs/LaserScan)
+  publishes   tracks (extended_tracker_msgs/ExtendedObjectArray)
+              tracks/markers (visualization_msgs/MarkerArray)
+              tracks/diagnostics (diagnostic_msgs/DiagnosticArray)
+  service     ~/reset (std_srvs/Trigger): drop the tracks and the learned background
+
+Every parameter, with its unit and range, is in the package's config/tracker.yaml
+(ros2 param describe /{NODE_NAME} NAME on a running node). Node options go after
+--ros-args; the node takes no others."""
+
+
+def _program_arguments(args) -> list:
+    """The command-line arguments that are not ROS's (not after ``--ros-args``), without
+    the program name."""
+    from rclpy.utilities import remove_ros_args
+
+    return remove_ros_args(sys.argv if args is None else args)[1:]
+
+
+def _refuse_start(message: str, err: BaseException | None = None) -> None:
+    """One fatal line and status 2: a start the command line or the parameters refuse."""
+    rclpy.logging.get_logger(NODE_NAME).fatal(message)
+    raise SystemExit(2) from err
+
 
 def main(args=None, stop: threading.Event | None = None) -> None:
     """
@@ -282,7 +313,22 @@ def main(args=None, stop: threading.Event | None = None) -> None:
     try:
         if stop.is_set():                     # asked to stop while starting: nothing to do
             return
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        try:
+            extra = _program_arguments(args)
+            if '-h' in extra or '--help' in extra:
+                print(USAGE)
+                return
+            if extra:
+                # `tracker_node -p model.mode:=phd` (no --ros-args): rclpy would ignore
+                # the option and run on the defaults without a word
+                _refuse_start(f'unexpected arguments {" ".join(extra)!r}: node options go '
+                              'after --ros-args (tracker_node --ros-args -p NAME:=VALUE); '
+                              'tracker_node --help lists what the node takes')
+            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        except _rclpy.RCLError as err:
+            # a params file that cannot be read or parsed, a malformed remap: rcl's
+            # reason, in one line instead of a traceback from rclpy.init
+            _refuse_start(f'cannot start: {err}', err)
         executor = SingleThreadedExecutor()
         node = TrackerNode()
         executor.add_node(node)
@@ -291,8 +337,7 @@ def main(args=None, stop: threading.Event | None = None) -> None:
     except ExternalShutdownException:
         pass
     except ConfigError as err:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid configuration: {err}')
-        raise SystemExit(2) from err
+        _refuse_start(f'invalid configuration: {err}', err)
     finally:
         if node is not None:
             node.get_logger().info(node.summary())
