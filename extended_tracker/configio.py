@@ -61,10 +61,11 @@ def _merged(old: dict, new):
 
 _Loader.add_constructor('tag:yaml.org,2002:map', _Loader.construct_mapping)
 _Loader.add_implicit_resolver('tag:yaml.org,2002:bool', re.compile(r'^[yYnN]$'), list('yYnN'))
-# decimal numbers with an exponent and no point (the YAML 1.1 resolver takes the others)
+# decimal numbers with an exponent as strtod reads them: YAML 1.1 wants a point and a
+# signed exponent (1.5e+5), so 1e5, 1.5e5 and 5.e3 were strings
 _Loader.add_implicit_resolver(
     'tag:yaml.org,2002:float',
-    re.compile(r'^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$'), list('-+0123456789'))
+    re.compile(r'^[-+]?([0-9]+(\.[0-9]*)?|\.[0-9]+)[eE][-+]?[0-9]+$'), list('-+.0123456789'))
 
 
 def load_yaml(path) -> TrackerConfig:

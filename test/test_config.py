@@ -87,6 +87,9 @@ def test_plain_yaml_reads_numbers_and_repeated_sections_as_a_parameter_file_does
     path.write_text('model: {clutter_rate: 3E1}\nbirth: {regions: [1e0, 2, 5e-1]}\n')
     cfg = load_yaml(path)
     assert cfg.model.clutter_rate == 30.0 and cfg.birth.regions == [1.0, 2.0, 0.5]
+    # every decimal form strtod reads whole (YAML 1.1 wants a point and a signed exponent)
+    path.write_text('birth: {regions: [1.5e1, 5.e-1, -2.5E0, .5e1, +1e0, 1.5e+1]}\n')
+    assert load_yaml(path).birth.regions == [15.0, 0.5, -2.5, 5.0, 1.0, 15.0]
 
 
 def test_presets_and_their_yaml_files_agree():

@@ -448,7 +448,8 @@ robot1:
     reduction:
       prune_weight: 1e-5
       fuse_weight: 2E+0
-    birth.regions: [1e0, -2.5, 3e-1]
+    model.clutter_rate: 1.5e1
+    birth.regions: [1e0, -2.5, 3e-1, 5.e0, -2.5E0, .5e1]
 """,
     # a section and the node's entry written twice: rcl merges them, the later value of a
     # parameter over the earlier one
