@@ -282,13 +282,20 @@ def main(argv=None) -> int:
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        return args.func(args)
+        status = args.func(args)
+        sys.stdout.flush()               # a closed pipe shows here, not at interpreter exit
+        return status
     except BaseException as err:
         # a cleanup that fails while Terminated unwinds (a writer closing half a record)
         # replaces it with its own exception: the flag still says why the command ended
         if _terminated.is_set():
             print('extended-tracker: terminated', file=sys.stderr)
             return 128 + signal.SIGTERM
+        if isinstance(err, BrokenPipeError):
+            # the reader went away (`extended-tracker real | head`): end quietly, as a
+            # process that SIGPIPE ends does; what stdout still holds goes nowhere
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 128 + signal.SIGPIPE
         if isinstance(err, (ExtendedTrackerError, OSError)):
             # OSError: a path that cannot be made or read, a full disk
             print(f'extended-tracker: error: {err}', file=sys.stderr)

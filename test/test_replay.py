@@ -436,6 +436,20 @@ def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_reader_that_goes_away_ends_a_command_quietly(tmp_path):
+    """`extended-tracker ... | head`: stdout closed before the command prints. It ended
+    with `error: [Errno 32] Broken pipe` and status 2; now quietly, with the status of a
+    process SIGPIPE ends, the work done (the bag written) kept."""
+    exe = Path(sys.executable).with_name('extended-tracker')
+    proc = subprocess.Popen([str(exe), 'simulate', str(tmp_path / 'sim'), '--duration',
+                             '0.5'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    proc.stdout.close()                                   # the reader is gone at once
+    err = proc.stderr.read()
+    assert (proc.wait(timeout=60), err) == (141, '')
+    assert (tmp_path / 'sim' / 'truth.json').is_file()
+
+
 def test_a_cleanup_failing_after_sigterm_still_ends_as_terminated(monkeypatch, capsys):
     """SIGTERM lands anywhere, a bag writer's close half way through a record among
     them; a cleanup that then fails replaces the exception: the command still ends with
