@@ -493,7 +493,7 @@ def main(argv=None) -> int:
     if args.profile:
         bench_profile()
         return 0
-    from .plotting import image_path
+    from .imagefile import image_path
 
     png = image_path(args.png)       # checked now, not after minutes of timing
     scans = 60 if args.quick else 300

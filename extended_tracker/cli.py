@@ -160,7 +160,7 @@ def cmd_evaluate(args) -> int:
 
     plot = None
     if args.plot:
-        from .plotting import image_path
+        from .imagefile import image_path
 
         plot = image_path(args.plot)            # the name written (a .png added)
     score, per, stamps = evaluate_bag(args.output_bag, args.truth, plot)

@@ -172,7 +172,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
     Score the ``/tracks`` of a replayed bag against a simulator ``truth.json``, over the
     region the scanner covers when the truth file gives it (``info.view``, see
     :func:`in_view`), as :func:`run_scenario` does. ``plot`` is checked as
-    :func:`plotting.image_path` checks it before the bag is read.
+    :func:`imagefile.image_path` checks it before the bag is read.
     """
     from rosbags.rosbag2 import Reader
 
@@ -188,7 +188,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
                f'extended-tracker simulate): {err!r}')
         raise BagError(msg) from err
     if plot:
-        from .plotting import image_path
+        from .imagefile import image_path
 
         plot = image_path(plot)
     store = message_typestore()

@@ -10,46 +10,15 @@ from __future__ import annotations
 
 from array import array
 import math
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use('Agg')
-from matplotlib.backend_bases import FigureCanvasBase  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Polygon, Wedge  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .errors import PlotError  # noqa: E402
 from .messages import id_rgba, outline_xy  # noqa: E402
-
-# what savefig writes from its file name's suffix, less pgf (it needs a LaTeX install)
-IMAGE_SUFFIXES = tuple(sorted(set(FigureCanvasBase.get_supported_filetypes()) - {'pgf'}))
-
-
-def image_path(path) -> Path:
-    """
-    The file a picture asked for at ``path`` is written to, its folder made: checked
-    before a run, so that a run of minutes does not end in a traceback at the plot.
-
-    A name without a suffix gets ``.png`` (as savefig would add, said here so the caller
-    can print the real name).
-
-    Raises
-    ------
-    PlotError
-        When ``path`` is a folder or its suffix names no format savefig writes.
-    """
-    p = Path(path)
-    if p.is_dir():
-        raise PlotError(f'plot {p} is a folder: name an image file, e.g. {p / "run.png"}')
-    if not p.suffix:
-        p = p.with_name(p.name + '.png')
-    if p.suffix[1:].lower() not in IMAGE_SUFFIXES:
-        raise PlotError(f'plot {p}: {p.suffix!r} is not an image format written here; use '
-                        f'one of {", ".join("." + s for s in IMAGE_SUFFIXES)}')
-    p.parent.mkdir(parents=True, exist_ok=True)
-    return p
 
 
 def id_colour(label: int):

@@ -140,7 +140,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
         no scans on it.
     PlotError
         When ``plot_path`` is a folder or not an image file name
-        (:func:`plotting.image_path`); checked before any scan is read.
+        (:func:`imagefile.image_path`); checked before any scan is read.
 
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -149,7 +149,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     if out.exists():
         raise BagError(f'output {out} exists; refusing to overwrite it')
     if plot_path:             # checked, its folder made: not found wanting after the run
-        from .plotting import image_path
+        from .imagefile import image_path
 
         plot_path = image_path(plot_path)
     reader, conns = open_scans(input_path, scan_topic)

@@ -100,3 +100,20 @@ def test_plot_run_draws_a_list_or_a_sketch_alike(results, tmp_path):
     plot_run(sketch, tmp_path / 'sketch.png', title='t')
     a, b = (tmp_path / 'list.png').read_bytes(), (tmp_path / 'sketch.png').read_bytes()
     assert len(a) > 10_000 and a == b
+
+
+def test_the_image_suffixes_are_those_savefig_writes_less_pgf():
+    """imagefile keeps matplotlib out of the name check (the bench checks first, then
+    times); its list must be the pinned matplotlib's, pgf left out (it needs LaTeX)."""
+    import subprocess
+    import sys
+
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    from extended_tracker.imagefile import IMAGE_SUFFIXES
+
+    assert set(IMAGE_SUFFIXES) == set(FigureCanvasBase.get_supported_filetypes()) - {'pgf'}
+    loaded = subprocess.run([sys.executable, '-c', 'import sys, extended_tracker.imagefile; '
+                             'print("matplotlib" in sys.modules)'], capture_output=True,
+                            text=True, check=True)
+    assert loaded.stdout.strip() == 'False'
