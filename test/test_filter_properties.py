@@ -1,6 +1,7 @@
 """Property tests (Hypothesis, deterministic profile) of the filter core's invariants."""
 
 import numpy as np
+import pytest
 from hypothesis import given, strategies as st
 
 from extended_tracker.config import TrackerConfig
@@ -293,6 +294,36 @@ def _sparse_merges(pts, d_max, delaunay):
         return P._merges(pts, d_max)
     finally:
         P.LINKAGE_MAX, P.DENSE_PAIRS_PER_POINT = saved
+
+
+@pytest.mark.parametrize('shape', ['blob', 'line'])
+def test_a_dense_blob_past_the_linkage_size_is_not_listed_pair_by_pair(monkeypatch, shape):
+    """1600 returns within a few dozen cm: the radius graph would list ~1.3 million pairs
+    before choosing the Delaunay edges; they are counted instead and never listed (a
+    12 700-return scan took 0.7 s and 1 GB to list them). On a line, where there is no
+    triangulation, they are listed as before. The spanning forest's edge lengths are
+    single linkage's over all pairs either way."""
+    from scipy.cluster.hierarchy import linkage
+    from scipy.spatial.distance import pdist
+
+    import extended_tracker.partition as P
+
+    rng = np.random.default_rng(3)
+    n = P.LINKAGE_MAX + 100
+    pts = (rng.normal(0.0, 0.1, (n, 2)) if shape == 'blob'
+           else np.column_stack([np.sort(rng.uniform(0, 3, n)), np.zeros(n)]))
+    listed = []
+
+    class Tree(P.cKDTree):
+        def query_pairs(self, *args, **kwargs):
+            listed.append(1)
+            return super().query_pairs(*args, **kwargs)
+
+    monkeypatch.setattr(P, 'cKDTree', Tree)
+    _, _, height = P._merges(pts, 0.8)
+    assert len(listed) == (shape == 'line')
+    z = linkage(pdist(pts), method='single')
+    assert np.allclose(np.sort(height), z[z[:, 2] <= 0.8, 2], rtol=0, atol=1e-12)
 
 
 @given(point_sets(max_n=90))
