@@ -340,6 +340,11 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
               f'{f"{met[name]}/{rounds}":>10s}')
     print('reference workload at the start of each round (ms): '
           + ', '.join(f'{t:.2f}' for t in yardstick))
+    # a round over target next to its yardstick tells a slow minute from slow code
+    print('each round: its yardstick | every case\'s median, in the table\'s order (ms)')
+    for r, ref in enumerate(yardstick):
+        print(f'  round {r + 1}  {ref:.2f} | '
+              + ' '.join(f'{medians[name][r]:.2f}' for name, *_ in cases))
     return pooled
 
 

@@ -1,5 +1,7 @@
 """The benchmark script's own output (figures are printed, never asserted)."""
 
+import re
+
 import pytest
 
 from extended_tracker.bench import (bench_filter, bench_profile, exp_ns, machine_line,
@@ -71,6 +73,14 @@ def test_target_rounds_report_every_case(capsys):
     # two rounds of one run's 10 steps after its 2 warm-up steps, and of the 10 scans
     # after the pipeline's 2 s of warm-up
     assert [len(t) for t in pooled.values()] == [20, 20, 20, 20, 20]
+    # each round's line: its yardstick, then its median of every case (one of which is
+    # the table's low or high end of the rounds' medians)
+    rounds = [row.split() for row in out.splitlines() if row.startswith('  round ')]
+    assert [r[:2] for r in rounds] == [['round', '1'], ['round', '2']]
+    assert all(r[3] == '|' and len(r) == 4 + 5 for r in rounds)
+    line = next(row for row in out.splitlines() if row.startswith('S1 tutorial-like'))
+    lo, hi = next(t for t in line.split() if re.fullmatch(r'[\d.]+-[\d.]+', t)).split('-')
+    assert sorted([rounds[0][6], rounds[1][6]]) == [lo, hi]
 
 
 def test_machine_line_and_yardstick():
