@@ -168,6 +168,21 @@ def test_returns_in_one_scan_are_not_an_object_returns_in_two_of_three_are():
     assert shown[:2] == [[], []] and all(s == [1] for s in shown[2:])
 
 
+def test_at_leg_height_an_id_needs_returns_in_three_scans():
+    """The leg_height preset's confirm_detections 3: a spot that returns in two scans
+    (a chair leg, a wall's half-hidden edge) is never shown; one seen in three scans is,
+    from the third on, no later than with two."""
+    from extended_tracker.config import preset
+
+    assert preset('leg_height').extraction.confirm_detections == 3
+    shown, _ = _spot(2, 3)
+    assert shown == [[]] * 8
+    assert [1] in _spot(2, 2)[0]                  # the default's two would have shown it
+    shown, _ = _spot(3, 3)
+    assert shown[:2] == [[], []] and shown[2] == [1]
+    assert _spot(8, 3)[0] == _spot(8, 2)[0]
+
+
 @pytest.mark.parametrize('mode', ['cphd', 'phd'])
 def test_a_cluster_too_small_to_be_born_from_is_clutter(mode):
     # birth.min_points 5: a tight cluster of 3 returns far from the walker, in scans
