@@ -44,18 +44,18 @@ class _Loader(yaml.SafeLoader):
                     'while constructing a mapping', node.start_mark, 'found unhashable key',
                     key_node.start_mark)
             value = self.construct_object(value_node, deep=deep)
-            old = out.get(key)
-            out[key] = _merged(old, value) if isinstance(old, dict) else value
+            out[key] = _merged(out[key], value) if key in out else value
         return out
 
 
-def _merged(old: dict, new):
-    """``new`` over ``old`` as a repeated key: mappings merged key by key, else ``new``."""
-    if not isinstance(new, dict):
+def _merged(old, new):
+    """``new`` over ``old`` as a repeated key: two mappings merged key by key, else
+    ``new``."""
+    if not (isinstance(old, dict) and isinstance(new, dict)):
         return new
     out = dict(old)
     for k, v in new.items():
-        out[k] = _merged(out[k], v) if isinstance(out.get(k), dict) else v
+        out[k] = _merged(out[k], v) if k in out else v
     return out
 
 
