@@ -55,6 +55,17 @@ def test_an_l_of_two_thin_pieces_is_reported_as_the_rectangle_around_it():
     np.testing.assert_array_equal(ped.X, est.X[1:2])
 
 
+
+def test_between_pieces_of_one_length_the_most_senior_then_the_smaller_label_reports():
+    # an L of two 2 m pieces (a square object seen across its corner)
+    def l_of(a, b):
+        return pieces([(a, (0.0, 0.0), (2.0, 0.0), 0.005, (1.0, 0.0), 10.0),
+                       (b, (0.0, 0.0), (0.0, 2.0), 0.005, (1.0, 0.0), 10.0)])
+    for labels, seniority, head in [((3, 7), (5, 9), 7), ((3, 7), (9, 5), 3),
+                                    ((7, 3), (4, 4), 3), ((3, 7), (4, 4), 3)]:
+        out, n = group_segments(l_of(*labels), np.array(seniority), gap=0.5, speed=2.0)
+        assert n == 1 and out.label.tolist() == [head], (labels, seniority)
+
 def test_pieces_apart_moving_differently_or_not_thin_stay_apart():
     side = (3, (0.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0)
     for other in [(7, (0.0, 0.6), (0.0, 2.4), 0.005, (5.0, 0.0), 10.0),     # 0.6 m gap
