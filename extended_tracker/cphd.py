@@ -510,12 +510,52 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     ``p+(n) = sum_j p_B(n - j) sum_{l >= j} C(l, j) p_S^j (1 - p_S)^{l - j} p(l)``;
     the mass beyond ``N_max`` is dropped and the pmf renormalised.
 
+    Computed on the pmf scaled by its largest entry and the birth pmf scaled by its own:
+    every term is then a product of values in [0, 1], and the terms that underflow are
+    below 1e-308 of the largest, which is at least 1 before the truncation. The binomial
+    weights ``C(l, j) p_S^j (1 - p_S)^{l - j}`` are in (0, 1] for the same reason. The
+    log-domain form (:func:`_predict_cardinality_log`) stands in where no retained term
+    is left: a birth mean so large that the birth counts which still fit under ``N_max``
+    are below 1e-308 of the likeliest (``N_max`` objects for sure and a mean of 1e10).
+    ``p_S`` changes with every scan period, so nothing here is cached per ``p_S``: a
+    recording's stamps jitter, and tables cached per value were rebuilt every scan.
     """
     n_max = len(log_card) - 1
-    surv = _log_thinning(n_max, float(p_survival)) + log_card[None, :]
-    log_surv = lse_last(surv)
-    # convolution: out[n] = logsumexp_j surv[j] + birth[n - j]
-    out = lse_last(log_surv[None, :] + _birth_matrix(n_max, float(birth_mean)))
+    p = np.exp(log_card - log_card.max())
+    p_s = float(p_survival)
+    if p_s <= 0.0:
+        p = np.concatenate([[np.add.reduce(p)], np.zeros(n_max)])
+    elif p_s < 1.0:
+        log_comb, j, lj = _thinning_terms(n_max)
+        p = np.exp(log_comb + (j * np.log(p_s) + lj * np.log1p(-p_s))) @ p
+    log_birth = poisson_log_pmf(float(birth_mean), n_max)
+    out = np.convolve(p, np.exp(log_birth - log_birth.max()))[:n_max + 1]
+    total = np.add.reduce(out)
+    if not (0.0 < total < np.inf):
+        return _predict_cardinality_log(log_card, p_s, float(birth_mean))
+    with np.errstate(divide='ignore'):
+        return np.log(out / total)
+
+
+def _predict_cardinality_log(log_card: np.ndarray, p_s: float, birth_mean: float
+                             ) -> np.ndarray:
+    """:func:`predict_cardinality` in the log domain, term by term."""
+    n_max = len(log_card) - 1
+    n = np.arange(n_max + 1)
+    lf = gammaln(n + 1.0)
+    j, l_ = n[:, None], n[None, :]
+    valid = j <= l_
+    lj = np.where(valid, l_ - j, 0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        log_ps = np.log(p_s)
+        log_qs = np.log1p(-p_s) if p_s < 1 else NEG_INF
+        term = np.where(j > 0, j * log_ps, 0.0) + np.where(lj > 0, lj * log_qs, 0.0)
+    thin = np.where(valid, lf[l_] - lf[j] - lf[lj] + term, NEG_INF)
+    log_surv = lse_last(thin + log_card[None, :])
+    diff = n[:, None] - n[None, :]
+    log_birth = poisson_log_pmf(birth_mean, n_max)
+    birth = np.where(diff >= 0, log_birth[np.clip(diff, 0, None)], NEG_INF)
+    out = lse_last(log_surv[None, :] + birth)
     return out - lse1(out)
 
 
@@ -558,27 +598,15 @@ def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
     return out - total
 
 
-@cached_tables(maxsize=64)
-def _birth_matrix(n_max: int, birth_mean: float) -> np.ndarray:
-    """``log p_B(n - j)`` as an (n, j) matrix, ``-inf`` above the diagonal; cached per
-    (N_max, birth mean), which is constant while the scan period is."""
+@cached_tables(maxsize=16)
+def _thinning_terms(n_max: int):
+    """``log C(l, j)`` (``-inf`` for ``j > l``), ``j`` and ``max(l - j, 0)`` as (j, l)
+    tables: ``log C(l, j) + j log p_S + (l - j) log(1 - p_S)`` is the log of the binomial
+    thinning weight, for every ``p_S`` in (0, 1)."""
     n = np.arange(n_max + 1)
-    diff = n[:, None] - n[None, :]
-    log_birth = poisson_log_pmf(birth_mean, n_max)
-    return np.where(diff >= 0, log_birth[np.clip(diff, 0, None)], NEG_INF)
-
-
-@cached_tables(maxsize=64)
-def _log_thinning(n_max: int, p_s: float) -> np.ndarray:
-    """``log C(l, j) p_S^j (1 - p_S)^(l - j)`` as a (j, l) matrix, cached per (N_max, p_S)."""
-    lf = gammaln(np.arange(n_max + 1) + 1)
-    j = np.arange(n_max + 1)[:, None]
-    l_ = np.arange(n_max + 1)[None, :]
+    lf = gammaln(n + 1.0)
+    j, l_ = n[:, None], n[None, :]
     valid = j <= l_
     lj = np.where(valid, l_ - j, 0)
-    log_comb = lf[l_] - lf[j] - lf[lj]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        log_ps = np.log(p_s)
-        log_qs = np.log1p(-p_s) if p_s < 1 else NEG_INF
-        term = np.where(j > 0, j * log_ps, 0.0) + np.where(lj > 0, lj * log_qs, 0.0)
-    return np.where(valid, log_comb + term, NEG_INF)
+    log_comb = np.where(valid, lf[l_] - lf[j] - lf[lj], NEG_INF)
+    return log_comb, np.broadcast_to(j, log_comb.shape).astype(float), lj.astype(float)

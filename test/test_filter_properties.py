@@ -5,7 +5,9 @@ import pytest
 from hypothesis import given, strategies as st
 
 from extended_tracker.config import TrackerConfig
-from extended_tracker.cphd import predict_cardinality, resize_cardinality
+from extended_tracker.cphd import (
+    _predict_cardinality_log, predict_cardinality, resize_cardinality,
+)
 from extended_tracker.ggiw import cell_stats, IW_OFFSET, Mixture, predict, update_pairs
 from extended_tracker.partition import build_partitions, distance_partitions
 from extended_tracker.reduction import merge_components, reduce_mixture
@@ -190,8 +192,32 @@ def test_cardinality_prediction_matches_enumeration(raw, p_s, birth):
             born = np.arange(n_max + 1 - s)
             want[s + born] += p_prev * binom.pmf(s, n_prev, p_s) * poisson.pmf(born, birth)
     want /= want.sum()
-    got = np.exp(predict_cardinality(np.log(p), p_s, birth))
-    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-15)
+    with np.errstate(divide='ignore'):                    # p_s = 1: log(1 - p_s)
+        for form in (predict_cardinality, _predict_cardinality_log):
+            got = np.exp(form(np.log(p), p_s, birth))
+            np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-15)
+
+
+def test_cardinality_prediction_limits(monkeypatch):
+    """No death and no birth leave the pmf as it is; certain death leaves none. N_max = 40
+    objects for sure, all surviving, and a birth mean of 1e10: the only birth count that
+    fits (none) has 40! / 1e400 of the largest birth probability, below what the scaled
+    linear sums hold, so the log-domain form stands in and keeps the 40."""
+    import extended_tracker.cphd as cphd
+
+    p = np.array([0.1, 0.2, 0.3, 0.4])
+    with np.errstate(divide='ignore'):
+        np.testing.assert_allclose(np.exp(predict_cardinality(np.log(p), 1.0, 0.0)), p,
+                                   rtol=1e-14)
+        np.testing.assert_allclose(np.exp(predict_cardinality(np.log(p), 0.0, 0.0)),
+                                   [1.0, 0.0, 0.0, 0.0], atol=1e-300)
+        calls = []
+        monkeypatch.setattr(cphd, '_predict_cardinality_log',
+                            lambda *a: calls.append(a) or _predict_cardinality_log(*a))
+        forty = np.log(np.eye(41)[40])
+        got = np.exp(predict_cardinality(forty, 1.0, 1e10))
+    assert len(calls) == 1
+    np.testing.assert_array_equal(got, np.eye(41)[40])
 
 
 @given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=41), st.integers(0, 60))
