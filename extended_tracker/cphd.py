@@ -511,9 +511,10 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     the mass beyond ``N_max`` is dropped and the pmf renormalised.
 
     Computed on the pmf scaled by its largest entry and the birth pmf scaled by its own:
-    every term is then a product of values in [0, 1], and the terms that underflow are
-    below 1e-308 of the largest, which is at least 1 before the truncation. The binomial
-    weights ``C(l, j) p_S^j (1 - p_S)^{l - j}`` are in (0, 1] for the same reason. The
+    every term is then a product of values in [0, 1] (the binomial weights
+    ``C(l, j) p_S^j (1 - p_S)^{l - j}`` are probabilities), the thinning keeps the total,
+    at least the scaled pmf's largest entry 1, and the convolution before the truncation
+    keeps it too, so a term that underflows is under 1e-308 of that total. The
     log-domain form (:func:`_predict_cardinality_log`) stands in where no retained term
     is left: a birth mean so large that the birth counts which still fit under ``N_max``
     are below 1e-308 of the likeliest (``N_max`` objects for sure and a mean of 1e10).
