@@ -542,17 +542,13 @@ def _predict_cardinality_log(log_card: np.ndarray, p_s: float, birth_mean: float
                              ) -> np.ndarray:
     """:func:`predict_cardinality` in the log domain, term by term."""
     n_max = len(log_card) - 1
-    n = np.arange(n_max + 1)
-    lf = gammaln(n + 1.0)
-    j, l_ = n[:, None], n[None, :]
-    valid = j <= l_
-    lj = np.where(valid, l_ - j, 0)
+    log_comb, j, lj = _thinning_terms(n_max)
     with np.errstate(divide='ignore', invalid='ignore'):
         log_ps = np.log(p_s)
         log_qs = np.log1p(-p_s) if p_s < 1 else NEG_INF
         term = np.where(j > 0, j * log_ps, 0.0) + np.where(lj > 0, lj * log_qs, 0.0)
-    thin = np.where(valid, lf[l_] - lf[j] - lf[lj] + term, NEG_INF)
-    log_surv = lse_last(thin + log_card[None, :])
+    log_surv = lse_last(log_comb + term + log_card[None, :])
+    n = np.arange(n_max + 1)
     diff = n[:, None] - n[None, :]
     log_birth = poisson_log_pmf(birth_mean, n_max)
     birth = np.where(diff >= 0, log_birth[np.clip(diff, 0, None)], NEG_INF)
@@ -601,13 +597,13 @@ def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
 
 @cached_tables(maxsize=16)
 def _thinning_terms(n_max: int):
-    """``log C(l, j)`` (``-inf`` for ``j > l``), ``j`` and ``max(l - j, 0)`` as (j, l)
-    tables: ``log C(l, j) + j log p_S + (l - j) log(1 - p_S)`` is the log of the binomial
-    thinning weight, for every ``p_S`` in (0, 1)."""
+    """``log C(l, j)`` as a (j, l) table (``-inf`` for ``j > l``), ``j`` as a column and
+    ``max(l - j, 0)`` as a table: ``log C(l, j) + j log p_S + (l - j) log(1 - p_S)`` is the
+    log of the binomial thinning weight."""
     n = np.arange(n_max + 1)
     lf = gammaln(n + 1.0)
     j, l_ = n[:, None], n[None, :]
     valid = j <= l_
     lj = np.where(valid, l_ - j, 0)
     log_comb = np.where(valid, lf[l_] - lf[j] - lf[lj], NEG_INF)
-    return log_comb, np.broadcast_to(j, log_comb.shape).astype(float), lj.astype(float)
+    return log_comb, j.astype(float), lj.astype(float)
