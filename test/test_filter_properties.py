@@ -310,25 +310,27 @@ def test_filter_step_cardinality_sums_to_one(seed, mode):
 
 
 def _sparse_merges(pts, d_max, delaunay):
-    """The radius-graph path of ``partition._merges`` (scipy's sparse MST), forced."""
+    """The spanning-forest path of ``partition._merges`` (scipy's sparse MST), forced:
+    over the Delaunay edges, or over the radius graph's pairs as where qhull fails."""
     import extended_tracker.partition as P
 
-    saved = P.LINKAGE_MAX, P.DENSE_PAIRS_PER_POINT
+    saved = P.LINKAGE_MAX, P._delaunay_pairs
     try:
         P.LINKAGE_MAX = -1
-        P.DENSE_PAIRS_PER_POINT = 0 if delaunay else 10**9
+        if not delaunay:
+            P._delaunay_pairs = lambda points: None
         return P._merges(pts, d_max)
     finally:
-        P.LINKAGE_MAX, P.DENSE_PAIRS_PER_POINT = saved
+        P.LINKAGE_MAX, P._delaunay_pairs = saved
 
 
 @pytest.mark.parametrize('shape', ['blob', 'line'])
 def test_a_dense_blob_past_the_linkage_size_is_not_listed_pair_by_pair(monkeypatch, shape):
-    """1600 returns within a few dozen cm: the radius graph would list ~1.3 million pairs
-    before choosing the Delaunay edges; they are counted instead and never listed (a
-    12 700-return scan took 0.7 s and 1 GB to list them). On a line, where there is no
-    triangulation, they are listed as before. The spanning forest's edge lengths are
-    single linkage's over all pairs either way."""
+    """100 returns past the linkage size, all within a few dozen cm: the radius graph's
+    ~1 million pairs are never listed (a 12 700-return scan took 0.7 s and 1 GB to list
+    them); the Delaunay edges are taken. On a line, where there is no triangulation, the
+    pairs are listed. The spanning forest's edge lengths are single linkage's over all
+    pairs either way."""
     from scipy.cluster.hierarchy import linkage
     from scipy.spatial.distance import pdist
 
@@ -385,7 +387,7 @@ def test_condensed_distances_equal_pdist_bit_for_bit(pts):
 def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     """
     Single linkage over all pairs and scipy's sparse MST over the radius graph's pairs, or
-    over its Delaunay edges (the dense-blob path): same forest weight and size, and each
+    over its Delaunay edges (the path past the linkage size): same forest weight and size, and each
     merge joins two clusters under their smallest index.
     """
     import extended_tracker.partition as P
@@ -400,6 +402,27 @@ def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     assert len(dense[2]) == len(sparse[2])
     # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
     assert np.isclose(dense[2].sum(), sparse[2].sum(), rtol=1e-12, atol=1e-9)
+
+
+@given(st.integers(0, 10_000), st.integers(3, 300), st.integers(0, 5))
+def test_delaunay_edges_are_the_triangulations_edges_each_once(seed, n, repeats):
+    """The edges taken from the triangulation equal its simplices' sides, sorted within
+    each edge and deduplicated row by row (numpy's unique over rows, the plain reading),
+    with each repeated point joined to the vertex it coincides with."""
+    from scipy.spatial import Delaunay
+
+    from extended_tracker.partition import _delaunay_pairs
+
+    rng = np.random.default_rng(seed)
+    pts = rng.normal(0.0, 1.0, (n, 2))
+    pts = np.vstack([pts, pts[rng.integers(0, n, repeats)]])
+    tri = Delaunay(pts)
+    s = tri.simplices
+    e = np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]], tri.coplanar[:, [0, 2]]])
+    expected = np.unique(np.sort(e, axis=1), axis=0)
+    got = _delaunay_pairs(pts)
+    assert len(tri.coplanar) == repeats          # each repeat is left out, and joined
+    assert np.array_equal(got, expected)
 
 
 def test_dense_blob_path_on_degenerate_inputs():
