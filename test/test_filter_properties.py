@@ -327,10 +327,10 @@ def _sparse_merges(pts, d_max, delaunay):
 @pytest.mark.parametrize('shape', ['blob', 'line'])
 def test_a_dense_blob_past_the_linkage_size_is_not_listed_pair_by_pair(monkeypatch, shape):
     """100 returns past the linkage size, all within a few dozen cm: the radius graph's
-    ~1 million pairs are never listed (a 12 700-return scan took 0.7 s and 1 GB to list
-    them); the Delaunay edges are taken. On a line, where there is no triangulation, the
-    pairs are listed. The spanning forest's edge lengths are single linkage's over all
-    pairs either way."""
+    780 000 pairs (every pair) are never listed (a 12 700-return scan took 0.7 s and 1 GB
+    to list its 12 million); the Delaunay edges are taken. On a line, where there is no
+    triangulation, the pairs are listed. The spanning forest's edge lengths are single
+    linkage's over all pairs either way."""
     from scipy.cluster.hierarchy import linkage
     from scipy.spatial.distance import pdist
 
@@ -426,7 +426,7 @@ def test_delaunay_edges_are_the_triangulations_edges_each_once(seed, n, repeats)
 
 
 def test_dense_blob_path_on_degenerate_inputs():
-    """Collinear returns (qhull cannot triangulate) and repeated ones on the blob path."""
+    """Collinear returns (qhull cannot triangulate) and repeated ones on the Delaunay path."""
     import extended_tracker.partition as P
 
     line = np.column_stack([np.linspace(0, 3, 80), np.zeros(80)])
