@@ -15,12 +15,12 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property, lru_cache
+from functools import lru_cache
 
 import numpy as np
 from scipy.special import gammaln
 
-from .memo import cached_tables, evolve, read_only
+from .memo import cached_attribute, cached_tables, evolve, read_only
 
 try:
     # numpy's C einsum: np.einsum wraps it in Python only to offer ``optimize``, which
@@ -112,7 +112,7 @@ class Mixture:
             return self._extent[idx]
         return self.V[idx] / (self.v[idx] - IW_OFFSET)[:, None, None]
 
-    @cached_property
+    @cached_attribute
     def _extent(self):
         return read_only(self.V / (self.v - IW_OFFSET)[:, None, None])[0]
 
@@ -148,14 +148,14 @@ class Mixture:
         """
         return self._per_label
 
-    @cached_property
+    @cached_attribute
     def _per_label(self):
         order, is_head, group = self.by_label()
         rank = np.empty(len(order), dtype=np.int64)
         rank[order] = group
         return read_only(self.label[order[is_head]], rank, np.bincount(rank, weights=self.w))
 
-    @cached_property
+    @cached_attribute
     def _by_label(self):
         order, is_head = group_heads(self.label, -weight_key(self.w))
         return read_only(order, is_head, is_head.cumsum() - 1)

@@ -36,6 +36,30 @@ def cached_tables(maxsize: int):
     return decorate
 
 
+class cached_attribute:
+    """
+    ``functools.cached_property`` without its lock: computed on the first access and
+    stored in the instance's ``__dict__``, where later accesses find it without this
+    descriptor. Python 3.11's ``cached_property`` takes an ``RLock`` on every first access
+    (3.12 dropped it), and a scan computes some seven such values. Two threads reading
+    one new object at once might both compute it; they get the same value.
+    """
+
+    def __init__(self, func):
+        self.func = func
+        self.name = func.__name__
+        self.__doc__ = func.__doc__
+
+    def __set_name__(self, owner, name):
+        self.name = name
+
+    def __get__(self, obj, objtype=None):
+        if obj is None:
+            return self
+        value = obj.__dict__[self.name] = self.func(obj)
+        return value
+
+
 def evolve(obj, **changes):
     """
     ``dataclasses.replace(obj, **changes)`` for a frozen dataclass whose ``__init__`` only

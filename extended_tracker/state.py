@@ -9,13 +9,12 @@ one scan reports; :class:`StepDiagnostics` counts what a step did.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
 from .config import ExtractionConfig, TrackerConfig
 from .ggiw import eig2, Mixture
-from .memo import read_only
+from .memo import cached_attribute, read_only
 
 NEG_INF = -np.inf
 NO_LABELS = read_only(np.zeros(0, np.int64))[0]
@@ -60,7 +59,7 @@ class Estimates:
         """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""
         return self._axes
 
-    @cached_property
+    @cached_attribute
     def _axes(self):
         # computed once per scan's estimates, read by messages, markers, shapes and plots
         # (shared, so read-only)

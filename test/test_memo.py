@@ -1,8 +1,10 @@
 """
-``memo.evolve`` against ``dataclasses.replace`` on the state objects it stands in for.
+``memo.evolve`` against ``dataclasses.replace`` on the state objects it stands in for, and
+``memo.cached_attribute`` against ``functools.cached_property``.
 """
 
 import dataclasses
+import functools
 import inspect
 
 import numpy as np
@@ -10,7 +12,7 @@ import pytest
 
 from extended_tracker.config import from_dict
 from extended_tracker.ggiw import IW_OFFSET, Mixture
-from extended_tracker.memo import evolve
+from extended_tracker.memo import cached_attribute, evolve
 from extended_tracker.pipeline import PipelineState
 from extended_tracker.sensing.shadow import Visibility
 from extended_tracker.state import Estimates, FilterState
@@ -66,3 +68,34 @@ def test_evolve_rejects_unknown_fields_and_leaves_cached_properties_behind():
     wider = evolve(mix, V=2 * mix.V)
     assert np.allclose(wider.expected_extent(), 2 * before)
     assert np.array_equal(mix.expected_extent(), before)
+
+
+def test_cached_attribute_computes_once_like_cached_property():
+    """On a frozen dataclass, as the package uses it: the first access computes and
+    stores, later ones read the stored value without calling the function, the class
+    gives the descriptor, and the two decorators agree access by access."""
+    calls = []
+
+    def twice(self):
+        """Twice x."""
+        calls.append(1)
+        return self.x * 2.0
+
+    @dataclasses.dataclass(frozen=True)
+    class Lean:
+        x: float
+        spread = cached_attribute(twice)
+
+    @dataclasses.dataclass(frozen=True)
+    class Std:
+        x: float
+        spread = functools.cached_property(twice)
+
+    for cls in (Lean, Std):
+        calls.clear()
+        a, b = cls(1.5), cls(4.0)
+        assert 'spread' not in a.__dict__
+        assert (a.spread, a.spread, b.spread) == (3.0, 3.0, 8.0)
+        assert len(calls) == 2 and a.__dict__['spread'] == 3.0
+        assert isinstance(cls.spread, (cached_attribute, functools.cached_property))
+    assert Lean.spread.__doc__ == 'Twice x.' and Lean.spread.name == 'spread'

@@ -10,12 +10,12 @@ messages and :class:`ScanData` all fit it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 import math
 
 import numpy as np
 
 from ..errors import ScanError
+from ..memo import cached_attribute
 
 INVALID_KINDS = ('nan', 'pos_inf', 'neg_inf', 'below_min', 'above_max')
 # beam clutter density (ScanPoints.beam_clutter_log_density) is held at its value here
@@ -138,7 +138,7 @@ class ScanPoints:
             return abs(float(self.angles[1] - self.angles[0]))
         return 0.0
 
-    @cached_property
+    @cached_attribute
     def sorted_beams(self) -> tuple[np.ndarray, np.ndarray, float]:
         """
         ``(order, angles[order], median spacing)``: the beams by ascending angle, computed
@@ -148,20 +148,20 @@ class ScanPoints:
         ang = self.angles[order]
         return order, ang, _median(ang[1:] - ang[:-1]) if len(ang) > 1 else 0.0
 
-    @cached_property
+    @cached_attribute
     def sorted_ranges(self) -> np.ndarray:
         """``ranges`` in the order of :attr:`sorted_beams` (the p_D model reads them twice
         a scan)."""
         return self.ranges[self.sorted_beams[0]]
 
-    @cached_property
+    @cached_attribute
     def full_turn(self) -> bool:
         """The beams go all the way round (a 360 degree scanner): no edge of the field of
         view, the last beam next to the first."""
         step = self.angle_step
         return step > 0 and self.angle_hi - self.angle_lo + 1.5 * step >= 2 * math.pi
 
-    @cached_property
+    @cached_attribute
     def wrapped_beams(self) -> tuple[np.ndarray, np.ndarray]:
         """
         ``(order, angles)`` of :attr:`sorted_beams` with half a turn of beams repeated
