@@ -25,7 +25,7 @@ import numpy as np
 from scipy.special import gammaln
 
 from .memo import cached_tables
-from .logmath import logsumexp, lse1, lse_last
+from .logmath import logsumexp, lse1, lse_last, neg_inf
 
 NEG_INF = -np.inf
 # partitions are split into three batches by active singletons from these sizes on
@@ -74,7 +74,7 @@ def poisson_log_pmf(mean: float, n_max: int) -> np.ndarray:
     """Log Poisson pmf at ``0..n_max`` (untruncated values)."""
     n = np.arange(n_max + 1)
     if mean <= 0:
-        out = np.full(n_max + 1, NEG_INF)
+        out = neg_inf(n_max + 1)
         out[0] = 0.0
         return out
     return n * np.log(mean) - mean - gammaln(n + 1)
@@ -139,7 +139,7 @@ def log_esf_prefixes(log_a: np.ndarray) -> np.ndarray:
 
     """
     p, k = log_a.shape
-    pre = np.full((k + 1, p, k + 1), NEG_INF)
+    pre = neg_inf((k + 1, p, k + 1))
     pre[:, :, 0] = 0.0
     for t in range(k):
         pre[t + 1, :, 1:] = np.logaddexp(pre[t, :, 1:], pre[t, :, :-1] + log_a[:, t:t + 1])
@@ -173,7 +173,7 @@ def leave_one_out_sums(pre: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) ->
 
     """
     p, k = log_a.shape
-    g = np.full((k + 1, p, k + 1), NEG_INF)          # g[j] = G_j, padded by one column
+    g = neg_inf((k + 1, p, k + 1))               # g[j] = G_j, padded by one column
     g[k, :, :k] = log_b
     for j in range(k - 1, 0, -1):
         g[j, :, :k] = np.logaddexp(g[j + 1, :, :k], log_a[:, j:j + 1] + g[j + 1, :, 1:])
@@ -263,7 +263,7 @@ def esf_terms(log_a: np.ndarray, log_b: np.ndarray | None, min_work: int = LINEA
 def _inf_padded(table: np.ndarray, pad: int) -> np.ndarray:
     """``table`` with ``pad`` entries of ``-inf`` on each side: ``out[i + pad]`` is
     ``table[i]`` for ``i`` in range and ``-inf`` for ``-pad <= i < len(table) + pad``."""
-    edge = np.full(pad, NEG_INF)
+    edge = neg_inf(pad)
     return np.concatenate([edge, table, edge])
 
 
@@ -285,7 +285,7 @@ def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
     R = int(ka.max()) if n_part else 0
     slot = act.cumsum() - 1
     slot -= np.concatenate([[0], ka.cumsum()[:-1]])[pid]
-    S = np.full((n_part, R), NEG_INF)
+    S = neg_inf((n_part, R))
     S[pid[act], slot[act]] = la[act]
     r = np.arange(R + 1)
     # the indices below run from -(R + 1) to k_most + R: out of range reads -inf
@@ -373,7 +373,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     if n_comp:
         log_psi = lse_last((log_w[:, None] + log_g).T) - log_nbar
     else:
-        log_psi = np.full(n_cells, NEG_INF)
+        log_psi = neg_inf(n_cells)
     log_a = log_psi - cell_log_c
     n_part = len(partitions)
     k_most = 0
@@ -410,9 +410,9 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
     W1 = lse_last((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
-    lam_P = np.full((n_part, n_max + 1), NEG_INF)
-    u0_terms = np.full(n_part, NEG_INF)
-    log_u_cell = np.full(n_cells, NEG_INF)
+    lam_P = neg_inf((n_part, n_max + 1))
+    u0_terms = neg_inf(n_part)
+    log_u_cell = neg_inf(n_cells)
     if n_part:
         n_active = np.bincount(pid, weights=single & np.isfinite(la),
                                minlength=n_part).astype(np.int64)
@@ -476,7 +476,7 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
     if n_comp:
         log_sum = logsumexp(log_w[:, None] + log_g, axis=0) - log_lc
     else:
-        log_sum = np.full(n_cells, NEG_INF)
+        log_sum = neg_inf(n_cells)
     clutter_only = cell_size == 1 if clutter_cells is None else (cell_size == 1) | clutter_cells
     log_d = np.logaddexp(np.where(clutter_only, 0.0, NEG_INF), log_sum)
     log_omega = np.array([np.sum(log_d[np.asarray(c)]) for c in partitions])
@@ -485,7 +485,7 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
         card = poisson_log_pmf(float(np.exp(logsumexp(log_w))) if n_comp else 0.0, n_max)
         return _prediction_stands(log_w, n_cells, card - logsumexp(card), len(partitions))
     log_omega = log_omega - log_total
-    log_cell_weight = np.full(n_cells, NEG_INF)
+    log_cell_weight = neg_inf(n_cells)
     for lo, cells in zip(log_omega, partitions):
         cells = np.asarray(cells)
         log_cell_weight[cells] = np.logaddexp(log_cell_weight[cells], lo)
@@ -585,7 +585,7 @@ def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
     filter runs: padded with zeros, or truncated and renormalised (as the prediction drops
     the mass beyond ``N_max``); all at ``n_max`` if no mass was at or below it.
     """
-    out = np.full(n_max + 1, NEG_INF)
+    out = neg_inf(n_max + 1)
     k = min(len(log_card), n_max + 1)
     out[:k] = log_card[:k]
     total = lse1(out)

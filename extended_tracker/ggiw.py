@@ -169,8 +169,9 @@ def group_heads(group: np.ndarray, key: np.ndarray):
     """
     order = np.lexsort((key, group))
     g = group[order]
-    is_head = np.ones(len(order), dtype=bool)
-    is_head[1:] = g[1:] != g[:-1]
+    is_head = np.empty(len(order), dtype=bool)
+    is_head[:1] = True
+    np.not_equal(g[1:], g[:-1], out=is_head[1:])
     return order, is_head
 
 

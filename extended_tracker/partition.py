@@ -289,7 +289,7 @@ def _roots(parent: np.ndarray) -> np.ndarray:
     labels = parent.copy()
     while True:
         nxt = labels[labels]
-        if (nxt == labels).all():
+        if np.logical_and.reduce(nxt == labels):
             return labels
         labels = nxt
 

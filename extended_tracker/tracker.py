@@ -27,6 +27,7 @@ from .ggiw import (
 from .identity import (
     group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
 )
+from .logmath import neg_inf
 from .memo import cached_tables, evolve
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
@@ -263,7 +264,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     diag.pairs = len(comp)
     log_pd0 = _log_constant(cfg.detection.p_d0)
 
-    log_g = np.full((n_comp + 1, n_cells), NEG_INF)
+    log_g = neg_inf((n_comp + 1, n_cells))
     log_g[comp, cell] = np.log(p_d_pair) + pair_lik
     log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + birth_lik,
                                 NEG_INF)

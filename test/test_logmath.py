@@ -1,10 +1,11 @@
-"""The package's log-sum-exp helpers against scipy.special.logsumexp (the oracle)."""
+"""The package's log-sum-exp helpers against scipy.special.logsumexp (the oracle), and
+``neg_inf`` against ``np.full``."""
 
 from hypothesis import given, strategies as st
 import numpy as np
 from scipy.special import logsumexp as scipy_lse
 
-from extended_tracker.logmath import logsumexp, lse1, lse_last
+from extended_tracker.logmath import logsumexp, lse1, lse_last, neg_inf
 
 values = st.lists(st.one_of(st.floats(-800, 800), st.just(-np.inf)), min_size=1, max_size=12)
 
@@ -36,3 +37,14 @@ def test_empty_and_all_minus_infinity():
     assert lse1(np.full(3, -np.inf)) == -np.inf
     assert np.all(lse_last(np.full((2, 3), -np.inf)) == -np.inf)
     assert np.all(lse_last(np.full((2, 2, 3), -np.inf)) == -np.inf)
+
+
+def test_neg_inf_is_a_new_writable_full_array():
+    for shape in (0, 3, (2, 5), (4, 0, 2), ()):
+        a, b = neg_inf(shape), neg_inf(shape)
+        expected = np.full(shape, -np.inf)
+        assert a.shape == expected.shape and a.dtype == expected.dtype
+        assert np.array_equal(a, expected)
+        if a.size:
+            a.flat[0] = 1.0                                 # its own memory
+            assert b.flat[0] == -np.inf
