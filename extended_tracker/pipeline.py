@@ -282,7 +282,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         major = est.axes()[0] if len(est) else np.zeros(0)
         guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
         prot = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate)
-        background, keep = update_background(background, sp, dt, bgc, prot)
+        near = protected_beams(sp, est.m[:, :2], major, bgc.track_gate)
+        background, keep = update_background(background, sp, dt, bgc, prot, near)
         bg_points = points[~keep]
         learned = points[background.learned[sp.beam]]
         points = points[keep]

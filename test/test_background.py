@@ -28,18 +28,22 @@ def run(scene, duration, cfg, seed=0):
 def test_walls_and_furniture_yield_no_tracks_and_a_stopped_person_stays_tracked():
     cfg = from_dict({})
     hist = run(walls_scene(), 20.0, cfg)
-    # After the learning period (confirm_time 1 s, then the static tracks die out; all gone
-    # by 5 s): nothing but the person. The person walks in at t = 1 s and stands still from
-    # 4 s to 14 s.
+    # From the end of the warm-up (1.5 s) on, nothing but the person: the walls behind the
+    # person, hidden at start-up and revealed as the person walks in, continue the learned
+    # walls and are learned at once (a wall piece was tracked in scans 19-35 before). The
+    # person walks in at t = 1 s and stands still from 4 s to 14 s; from 5 s on, exactly
+    # one report is on them.
     labels_on_person = []
     for k, (truth, res) in enumerate(hist):
-        if k < 50:
+        if k < 15:
             continue
         est = res.estimates
         (person,) = truth
         d = np.linalg.norm(est.m[:, :2] - person.centre, axis=1) if len(est) else np.zeros(0)
         on_person = d < 0.6
         assert np.sum(~on_person) == 0, (k, est.m[~on_person, :2])   # no static structure
+        if k < 50:
+            continue
         assert np.sum(on_person) == 1, k                               # the person, always
         labels_on_person.append(int(est.label[on_person][0]))
     assert len(set(labels_on_person)) == 1
@@ -349,16 +353,18 @@ def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
     assert len(labels) == 1
 
 
-def _fan(ranges_per_scan, cfg, n_beams=31):
-    """Feed whole scans of ranges (0.35 deg apart) with nothing protected; the keep-masks
-    over the beams (True: the beam's return reached the filter)."""
+def _fan(ranges_per_scan, cfg, n_beams=31, tracked=None):
+    """Feed whole scans of ranges (0.35 deg apart) with nothing protected (and the beams
+    ``tracked`` near a reported track); the keep-masks over the beams (True: the beam's
+    return reached the filter)."""
     spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
     (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
     state, kept = None, []
     for ranges in ranges_per_scan:
         scan.ranges = np.asarray(ranges, dtype=np.float32)
         sp = scan_to_points(scan)
-        state, keep = update_background(state, sp, 0.1, cfg, np.zeros(n_beams, bool))
+        state, keep = update_background(state, sp, 0.1, cfg, np.zeros(n_beams, bool),
+                                        tracked)
         beam_kept = np.zeros(n_beams, bool)
         beam_kept[sp.beam[keep]] = True
         kept.append(beam_kept)
@@ -484,3 +490,80 @@ def test_a_full_turn_learns_the_same_wherever_its_seam_falls():
     seam = (np.arange(n) >= 350) | (np.arange(n) < 10)
     assert np.isfinite(plain.background[~seam]).all()           # the wall
     assert np.isfinite(plain.background[seam]).sum() >= 18      # the sparkling surface
+
+
+def test_a_wall_hidden_since_start_up_is_learned_as_soon_as_it_is_revealed():
+    """
+    The bundled demo's wall: part of it is hidden from start-up by something that never
+    holds still (a walker), and is revealed when the walker leaves. Its beams have no
+    background and were never seen free; their returns continue a neighbour's learned
+    wall (within ``margin``), so they are learned in the scan that reveals them, not
+    tracked as an object for the confirm_time they would take to ripen. Something
+    standing in front of the revealed wall (by more than ``margin``) is not: it does not
+    continue the wall; nor are returns near a reported track (a person who stood from
+    start-up, one leg learned: the other leg continues it).
+    """
+    cfg = from_dict({}).background                   # margin 0.15 m, confirm_time 1 s
+    wall = np.full(31, 5.0)
+    hidden = [np.where(np.arange(31) < 10, wall, 1.0 + 0.2 * k) for k in range(15)]
+    state, kept = _fan(hidden + [wall] * 3, cfg)
+    assert np.allclose(state.background[:10], 5.0)   # the part seen from start-up
+    assert not kept[15].any()                        # revealed: learned at once
+    assert np.allclose(state.background, 5.0, atol=0.01)
+    # a person 0.4 m in front of the wall on the last beams when it is revealed
+    person = np.where(np.arange(31) >= 21, 4.6, 5.0)
+    state, kept = _fan(hidden + [person] * 3, cfg)
+    assert not kept[15][:21].any() and kept[15][21:].all()
+    assert np.isnan(state.background[21:]).all()
+    # the revealed beams near a reported track ripen as any return does
+    near = np.arange(31) >= 10
+    state, kept = _fan(hidden + [wall] * 12, cfg, tracked=near)
+    assert kept[15][10:].all() and not kept[-1][10:].any()
+    # before this, the revealed wall waited out confirm_time like a new object
+    state, kept = _fan(hidden + [wall] * 12, from_dict({'background': {'margin': 0.005}})
+                       .background)
+    assert kept[15][10:].all() and not kept[-1][10:].any()
+
+
+def _continues_ring_by_ring(r, b, which, reach, margin, wrap):
+    """The plain reading of ``_continues``: one ring of neighbours a round, beam by beam."""
+    from extended_tracker.sensing.background import NEIGHBOUR_BEAMS
+
+    n = len(r)
+    b = b.copy()
+    out = np.zeros(n, bool)
+    while True:
+        new = []
+        for i in np.nonzero(which & ~out)[0]:
+            for off in range(-NEIGHBOUR_BEAMS, NEIGHBOUR_BEAMS + 1):
+                j = i + off
+                if wrap:
+                    j %= n
+                elif not 0 <= j < n:
+                    continue
+                if (off and np.isfinite(b[j]) and abs(r[i] - b[j]) <= margin
+                        and r[i] <= reach[off + NEIGHBOUR_BEAMS]):
+                    new.append(i)
+                    break
+        if not new:
+            return out
+        out[new] = True
+        b[new] = r[new]
+
+
+@pytest.mark.parametrize('seed', range(40))
+def test_revealed_stretches_are_found_as_ring_by_ring(seed):
+    """Runs taken whole give what finding one ring of neighbours a round gives."""
+    from extended_tracker.sensing.background import _continues, _reach
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 60))
+    # piecewise surfaces: steps of 0.05-0.4 m, some beams with nothing
+    r = 3.0 + np.cumsum(rng.choice([0.0, 0.05, 0.1, 0.3, -0.3, 0.4], n))
+    r[rng.random(n) < 0.1] = np.inf
+    b = np.where(rng.random(n) < 0.3, r + rng.normal(0, 0.1, n), np.nan)
+    which = np.isnan(b) & np.isfinite(r) & (rng.random(n) < 0.9)
+    reach = _reach(np.deg2rad(rng.choice([0.25, 0.5, 1.0, 3.0])), 0.15)
+    for wrap in (False, True):
+        got = _continues(r, b, which, reach, 0.15, wrap)
+        assert np.array_equal(got, _continues_ring_by_ring(r, b, which, reach, 0.15, wrap))
