@@ -281,8 +281,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
                            est.label[travel >= bgc.moved_distance])
         major = est.axes()[0] if len(est) else np.zeros(0)
         guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
-        prot = protected_beams(sp, est.m[guard, :2], major[guard], bgc.track_gate)
-        near = protected_beams(sp, est.m[:, :2], major, bgc.track_gate)
+        prot, near = protected_beams(sp, est.m[:, :2], major, bgc.track_gate, guard)
         background, keep = update_background(background, sp, dt, bgc, prot, near)
         bg_points = points[~keep]
         learned = points[background.learned[sp.beam]]

@@ -567,3 +567,32 @@ def test_revealed_stretches_are_found_as_ring_by_ring(seed):
     for wrap in (False, True):
         got = _continues(r, b, which, reach, 0.15, wrap)
         assert np.array_equal(got, _continues_ring_by_ring(r, b, which, reach, 0.15, wrap))
+
+
+@pytest.mark.parametrize('seed', range(10))
+def test_beams_near_tracks_in_one_pass_as_with_the_plain_distance(seed):
+    """``protected_beams`` with a guard gives the beams near the guard tracks and near any
+    track, each as the plain reading (``np.linalg.norm`` of every return to every centre
+    against radius plus gate) gives them."""
+    from extended_tracker.sensing.background import protected_beams
+
+    rng = np.random.default_rng(seed)
+    (scan, _), = simulate(Scene((), walls=(((4.0, -6.0), (4.0, 6.0)),),
+                                laser=LaserSpec(dropout=0.2)), 0.1, seed=seed)
+    sp = scan_to_points(scan)
+    k = int(rng.integers(0, 6))
+    centres = np.column_stack([rng.uniform(3.0, 5.0, k), rng.uniform(-5.0, 5.0, k)])
+    radius = rng.uniform(0.1, 0.8, k)
+    guard = rng.random(k) < 0.5
+
+    def plain(c, rad):
+        out = np.zeros(len(sp.angles), bool)
+        if len(c):
+            d = np.linalg.norm(sp.points[:, None, :] - c[None], axis=2)
+            out[sp.beam[(d <= rad + 0.5).any(axis=1)]] = True
+        return out
+
+    prot, near = protected_beams(sp, centres, radius, 0.5, guard)
+    assert np.array_equal(prot, plain(centres[guard], radius[guard]))
+    assert np.array_equal(near, plain(centres, radius))
+    assert np.array_equal(protected_beams(sp, centres, radius, 0.5), near)

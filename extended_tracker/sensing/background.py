@@ -106,14 +106,26 @@ class BackgroundState:
 
 
 def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: np.ndarray,
-                    gate: float) -> np.ndarray:
-    """Beams whose return lies within ``radius + gate`` of one of the track centres."""
-    prot = np.zeros(len(scan.angles), dtype=bool)
+                    gate: float, guard: np.ndarray | None = None):
+    """
+    Beams whose return lies within ``radius + gate`` of one of the track centres; with
+    ``guard`` (bool over the tracks), the pair ``(beams near a guard track, beams near
+    any track)`` from one pass over the returns.
+    """
+    near = np.zeros(len(scan.angles), dtype=bool)
     if not len(track_centres) or not len(scan.points):
-        return prot
-    d = np.linalg.norm(scan.points[:, None, :] - track_centres[None, :, :], axis=2)
-    prot[scan.beam[np.logical_or.reduce(d <= (track_radius + gate)[None, :], axis=1)]] = True
-    return prot
+        return near if guard is None else (near, near.copy())
+    p = scan.points
+    dx = p[:, 0, None] - track_centres[None, :, 0]
+    dy = p[:, 1, None] - track_centres[None, :, 1]
+    within = np.sqrt(dx * dx + dy * dy) <= (track_radius + gate)[None, :]   # norm's bits
+    near[scan.beam[np.logical_or.reduce(within, axis=1)]] = True
+    if guard is None:
+        return near
+    prot = np.zeros(len(scan.angles), dtype=bool)
+    if np.logical_or.reduce(guard):
+        prot[scan.beam[np.logical_or.reduce(within[:, guard], axis=1)]] = True
+    return prot, near
 
 
 NEIGHBOUR_BEAMS = 8                 # at most this many beams either side (a near surface)
@@ -186,19 +198,10 @@ def _continues(r, b, which, reach, margin, wrap=False):
     each within reach of the other, find each other whichever is found first, so such runs
     are taken whole: a round per gap in a stretch, not per beam.
     """
-    n = len(r)
-    link = which & np.roll(which, -1)                  # beam i and the next
-    i = link.nonzero()[0]
-    ri, rn = r[i], r[(i + 1) % n]
-    link[i] = (np.abs(ri - rn) <= margin) & (np.maximum(ri, rn) <= reach[NEIGHBOUR_BEAMS + 1])
-    if not wrap:
-        link[-1] = False
-    run = np.cumsum(np.concatenate([[True], ~link[:-1]])) - 1
-    if wrap and link[-1]:
-        run[run == run[-1]] = run[0]                   # the run across the seam
     b = b.copy()
     todo = which.copy()
-    out = np.zeros(n, dtype=bool)
+    out = np.zeros(len(r), dtype=bool)
+    run = None
     while True:
         idx = todo.nonzero()[0]
         if not len(idx):
@@ -208,10 +211,28 @@ def _continues(r, b, which, reach, margin, wrap=False):
         hit = np.logical_or.reduce((np.abs(bj - rs) <= margin) & (rs <= reach), axis=1)
         if not np.logical_or.reduce(hit):
             return out
+        if run is None:
+            run = _runs(r, which, reach[NEIGHBOUR_BEAMS + 1], margin, wrap)
         new = todo & np.isin(run, run[idx[hit]])
         out |= new
         b[new] = r[new]
         todo &= ~new
+
+
+def _runs(r, which, reach_one, margin, wrap=False):
+    """A run label per beam: adjacent ``which`` beams within ``margin`` of each other, each
+    within ``reach_one`` (one beam apart within ``margin`` across), share one."""
+    n = len(r)
+    link = which & np.roll(which, -1)                  # beam i and the next
+    i = link.nonzero()[0]
+    ri, rn = r[i], r[(i + 1) % n]
+    link[i] = (np.abs(ri - rn) <= margin) & (np.maximum(ri, rn) <= reach_one)
+    if not wrap:
+        link[-1] = False
+    run = np.cumsum(np.concatenate([[True], ~link[:-1]])) - 1
+    if wrap and link[-1]:
+        run[run == run[-1]] = run[0]                   # the run across the seam
+    return run
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
