@@ -77,7 +77,7 @@ def poisson_log_pmf(mean: float, n_max: int) -> np.ndarray:
         out = neg_inf(n_max + 1)
         out[0] = 0.0
         return out
-    return n * np.log(mean) - mean - gammaln(n + 1)
+    return n * np.log(mean) - mean - _log_factorial(n_max)
 
 
 def _log_factorial(k: int) -> np.ndarray:
@@ -601,7 +601,7 @@ def _thinning_terms(n_max: int):
     ``max(l - j, 0)`` as a table: ``log C(l, j) + j log p_S + (l - j) log(1 - p_S)`` is the
     log of the binomial thinning weight."""
     n = np.arange(n_max + 1)
-    lf = gammaln(n + 1.0)
+    lf = _log_factorial(n_max)
     j, l_ = n[:, None], n[None, :]
     valid = j <= l_
     lj = np.where(valid, l_ - j, 0)
