@@ -40,7 +40,7 @@ from .cphd import thin_cardinality
 from .errors import ScanError
 from .ggiw import gate_covariance, gate_distance2, inv2
 from .memo import evolve
-from .sensing.background import BackgroundState, protected_beams, update_background
+from .sensing.background import BackgroundState, beams_near_tracks, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability
 from .state import Estimates, FilterState, find_sorted, StepDiagnostics
@@ -281,7 +281,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
                            est.label[travel >= bgc.moved_distance])
         major = est.axes()[0] if len(est) else np.zeros(0)
         guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
-        prot, near = protected_beams(sp, est.m[:, :2], major, bgc.track_gate, guard)
+        prot, near = beams_near_tracks(sp, est.m[:, :2], major, bgc.track_gate, guard)
         background, keep = update_background(background, sp, dt, bgc, prot, near)
         bg_points = points[~keep]
         learned = points[background.learned[sp.beam]]

@@ -571,10 +571,10 @@ def test_revealed_stretches_are_found_as_ring_by_ring(seed):
 
 @pytest.mark.parametrize('seed', range(10))
 def test_beams_near_tracks_in_one_pass_as_with_the_plain_distance(seed):
-    """``protected_beams`` with a guard gives the beams near the guard tracks and near any
-    track, each as the plain reading (``np.linalg.norm`` of every return to every centre
-    against radius plus gate) gives them."""
-    from extended_tracker.sensing.background import protected_beams
+    """``beams_near_tracks`` gives the beams near the guard tracks and near any track,
+    each as the plain reading (``np.linalg.norm`` of every return to every centre against
+    radius plus gate) gives them."""
+    from extended_tracker.sensing.background import beams_near_tracks
 
     rng = np.random.default_rng(seed)
     (scan, _), = simulate(Scene((), walls=(((4.0, -6.0), (4.0, 6.0)),),
@@ -592,7 +592,6 @@ def test_beams_near_tracks_in_one_pass_as_with_the_plain_distance(seed):
             out[sp.beam[(d <= rad + 0.5).any(axis=1)]] = True
         return out
 
-    prot, near = protected_beams(sp, centres, radius, 0.5, guard)
+    prot, near = beams_near_tracks(sp, centres, radius, 0.5, guard)
     assert np.array_equal(prot, plain(centres[guard], radius[guard]))
     assert np.array_equal(near, plain(centres, radius))
-    assert np.array_equal(protected_beams(sp, centres, radius, 0.5), near)

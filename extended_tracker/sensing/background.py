@@ -106,24 +106,22 @@ class BackgroundState:
                 and np.allclose(self.angles, scan.angles, atol=1e-9))
 
 
-def protected_beams(scan: ScanPoints, track_centres: np.ndarray, track_radius: np.ndarray,
-                    gate: float, guard: np.ndarray | None = None):
+def beams_near_tracks(scan: ScanPoints, track_centres: np.ndarray,
+                      track_radius: np.ndarray, gate: float, guard: np.ndarray):
     """
-    Beams whose return lies within ``radius + gate`` of one of the track centres; with
-    ``guard`` (bool over the tracks), the pair ``(beams near a guard track, beams near
-    any track)`` from one pass over the returns.
+    ``(protected, near)``: the beams whose return lies within ``radius + gate`` of a
+    ``guard`` track's centre (``guard``: bool over the tracks; the protecting ones), and
+    of any track's, from one pass over the returns.
     """
     near = np.zeros(len(scan.angles), dtype=bool)
+    prot = np.zeros(len(scan.angles), dtype=bool)
     if not len(track_centres) or not len(scan.points):
-        return near if guard is None else (near, near.copy())
+        return prot, near
     p = scan.points
     dx = p[:, 0, None] - track_centres[None, :, 0]
     dy = p[:, 1, None] - track_centres[None, :, 1]
     within = np.sqrt(dx * dx + dy * dy) <= (track_radius + gate)[None, :]   # norm's bits
     near[scan.beam[np.logical_or.reduce(within, axis=1)]] = True
-    if guard is None:
-        return near
-    prot = np.zeros(len(scan.angles), dtype=bool)
     if np.logical_or.reduce(guard):
         prot[scan.beam[np.logical_or.reduce(within[:, guard], axis=1)]] = True
     return prot, near
