@@ -317,13 +317,14 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # a beam hidden before it was learned (no background, never seen free) that returns
         # the range of a neighbour's background continues that surface: a stretch of wall
         # revealed by someone walking away is learned at once, not tracked for the
-        # confirm_time it would take to ripen
+        # confirm_time it would take to ripen (promoted ripe or not; with no background
+        # it is farther, and never flips with one)
         hidden = learn & ~known & ~free
         if tracked is not None:
             hidden &= ~tracked
         if np.logical_or.reduce(hidden):
             hidden = _continues(r, b, hidden, reach, margin, wrap)
-        promote = learn & ((farther & (ripe | hidden) & ~lately) | (nearer & (long | thin)))
+        promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
         second = learn & ripe & lately & ~promote
         b = np.where(promote, c, b)
         b_ago = np.where(promote, 0.0, b_ago)
