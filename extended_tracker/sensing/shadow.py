@@ -224,8 +224,9 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     if det.model == 'constant' or scan is None or n == 0:
         ones = np.ones(n)
         return Visibility(np.full(n, det.p_d0), ones, None)
+    extent = mix.expected_extent()
     bearing, half, half_widened, r_near, r_far, r_c, across = _geometry(
-        mix.m, mix.expected_extent(), mix.P, det.widen_sigmas, det.max_widen)
+        mix.m, extent, mix.P, det.widen_sigmas, det.max_widen)
     bearing = scan.in_scan_frame(bearing)
 
     def lookup(half_angle):
@@ -248,10 +249,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     else:
         plain, turn = lookup(half)
         visible = lookup(half_widened)[0] if widen else plain
-    # The visible part's centroid sits at the middle of its unshadowed beams, on the
-    # object's near range: an offset across the line of sight from the centre, exactly
-    # zero for an object in full view.
-    offset = across * (turn * r_c)[:, None]
+    offset = _centroid_offset(extent, across, turn * r_c)
     # wholly out of the field of view or beyond range: the object has left the scene
     step = abs(scan.angle_step)
     outside = r_near > scan.range_max
@@ -261,6 +259,34 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside)
+
+
+def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """
+    Offset (k, 2) of the visible part's centroid from the centre of each component.
+
+    ``X`` (k, 2, 2) are the expected extents, ``u`` (k, 2) the unit vectors across the
+    line of sight and ``shift`` (k,) how far across it the middle of the unshadowed beams
+    lies from the centre's bearing (m, at the centre's range): exactly 0 for an object in
+    full view, and then so is the offset.
+
+    Notes
+    -----
+    A beam crosses the object along the line of sight, and the middles of those chords
+    lie on the diameter conjugate to it, through the centre along ``X u`` (for ``x`` on
+    it, ``x^T X^-1 e = 0`` with ``e`` along the line of sight). The centroid of the
+    visible part moves along that diameter, by ``shift`` across the line of sight:
+    ``offset = X u shift / (u^T X u)``. For a round object it is ``u shift``, across the
+    line of sight; for a long one seen obliquely (a car's side) it is along the object.
+    Taken across the line of sight there, it put the expected centroid off the side's
+    line, where the side's thin extent holds it to centimetres, and the track's velocity
+    turned off the car's heading until the gate let go of its returns.
+    """
+    Xu = einsum('kij,kj->ki', X, u)
+    uXu = einsum('ki,ki->k', u, Xu)
+    # an object thin across the line of sight (seen end on) has no width to shift along
+    scale = np.divide(shift, uXu, out=np.zeros(len(shift)), where=uXu > 1e-12)
+    return Xu * scale[:, None]
 
 
 def _seen(visible, r_near, scan: ScanPoints, det) -> np.ndarray:
