@@ -45,10 +45,10 @@ def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
 
     ``m`` (k, 4) are the kinematic means, ``X`` (k, 2, 2) the expected extents and ``P``
     (k, 4, 4) the kinematic covariances. Returns ``(bearing, half, half_widened, r_near,
-    r_far, r, across)``: ``half`` from the expected extent alone, ``half_widened`` with
+    r_far, r, u)``: ``half`` from the expected extent alone, ``half_widened`` with
     ``widen_sigmas`` position stds across the line of sight added (at most ``max_widen``
-    metres); ``r`` the centre's range and ``across`` (k, 2) the unit vector across the
-    line of sight.
+    metres); ``r`` the centre's range and ``u`` (k, 2) the unit vector across the line of
+    sight.
     """
     k = len(m)
     r = np.hypot(m[:, 0], m[:, 1])
@@ -225,7 +225,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
         ones = np.ones(n)
         return Visibility(np.full(n, det.p_d0), ones, None)
     extent = mix.expected_extent()
-    bearing, half, half_widened, r_near, r_far, r_c, across = _geometry(
+    bearing, half, half_widened, r_near, r_far, r_c, u = _geometry(
         mix.m, extent, mix.P, det.widen_sigmas, det.max_widen)
     bearing = scan.in_scan_frame(bearing)
 
@@ -249,7 +249,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     else:
         plain, turn = lookup(half)
         visible = lookup(half_widened)[0] if widen else plain
-    offset = _centroid_offset(extent, across, turn * r_c)
+    offset = _centroid_offset(extent, u, turn * r_c)
     # wholly out of the field of view or beyond range: the object has left the scene
     step = abs(scan.angle_step)
     outside = r_near > scan.range_max
