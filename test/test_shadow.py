@@ -81,7 +81,7 @@ def test_centroid_offset_is_zero_in_full_view_and_points_to_the_seen_half():
 def test_centroid_offset_of_a_long_object_runs_along_it(occluder):
     """
     A long thin object seen obliquely (a car's side: 4 m by 0.3 m, along x, at a bearing
-    of 39 deg) behind a post that hides its middle, its far end or its near end. The
+    of 39 deg) behind a post that hides its middle, its nearer half or its farther. The
     oracle is the simulated scan itself: the mean of the object's returns with the post
     less their mean without it. The expected offset must lie along the object, as the
     returns do (it was across the line of sight, 0.2-0.7 m off the side's line), and
