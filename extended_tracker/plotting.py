@@ -127,10 +127,11 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         sketch = RunSketch(is_rectangle, max_points)
         for r in results:
             sketch.add(r)
-    fig, ax = plt.subplots(figsize=(10, 8), dpi=110)
+    pts, bg = sketch.points(), sketch.background()
+    limits = _limits(pts + [sketch.track(lab)[:, :2] for lab in sketch.tracks])
+    fig, ax = plt.subplots(figsize=_figure_size(limits), dpi=110)
     if fov is not None:
         _sensor(ax, *fov)
-    pts, bg = sketch.points(), sketch.background()
     if bg:
         b = np.vstack(bg)
         step = max(1, len(b) // max_points)
@@ -165,21 +166,53 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
                  + f'\n(grey: {short} ids reported in fewer than {min_scans} scans)')
     if pts or bg:
         ax.legend(loc='upper right', fontsize=8, markerscale=10)
-    _fit(ax, pts + [sketch.track(lab)[:, :2] for lab in sketch.tracks])
+    if limits is not None:
+        ax.set_xlim(limits[0][0], limits[1][0])
+        ax.set_ylim(limits[0][1], limits[1][1])
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
-def _fit(ax, chunks):
-    """Axis limits around the points and track centres (0.5 and 99.5 percentiles, 1 m
-    margin), the sensor at the origin kept in view."""
+def _limits(chunks):
+    """``(lo, hi)`` corners of the view around the points and track centres (0.5 and 99.5
+    percentiles, 1 m margin), the sensor at the origin kept in view; None without any."""
     chunks = [c for c in chunks if len(c)]
     if not chunks:
-        return
+        return None
     allp = np.vstack(chunks + [np.zeros((1, 2))])
     lo = np.percentile(allp, 0.5, axis=0) - 1.0
     hi = np.percentile(allp, 99.5, axis=0) + 1.0
-    lo = np.minimum(lo, -0.5)
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
+    return np.minimum(lo, -0.5), hi
+
+
+FIGURE_SIZE = (10.0, 8.0)        # inches, the picture of a scene about as wide as deep
+FIGURE_SIDE_MAX = 16.0           # the width of a picture of a wide, shallow scene
+FIGURE_DEPTH_MAX = 10.0          # the height of a picture of a deep, narrow one
+FIGURE_SIDE_MIN = 4.0
+FIGURE_FRAME = (1.2, 1.3)        # inches of labels and title around the axes (w, h)
+
+
+def _figure_size(limits):
+    """
+    Figure size for the view ``limits`` drawn at equal scale: 10 x 8 inches for a view
+    within a factor of two of that box's proportions, else the long side stretched (to
+    ``FIGURE_SIDE_MAX`` across, ``FIGURE_DEPTH_MAX`` down) and the short side fitted to
+    the view (a corridor 22 m long and 4.5 m wide filled a strip of the 10 x 8 inches
+    under two inches high).
+    """
+    if limits is None:
+        return FIGURE_SIZE
+    width, depth = np.maximum(limits[1] - limits[0], 1e-6)
+    fw, fh = FIGURE_FRAME
+    ratio = depth / width
+    box_w, box_h = FIGURE_SIZE[0] - fw, FIGURE_SIZE[1] - fh
+    if box_h / box_w * 0.5 <= ratio <= box_h / box_w * 2.0:
+        return FIGURE_SIZE
+    if ratio < 1.0:                                   # wide: long side across
+        w = FIGURE_SIDE_MAX
+        h = min(max((w - fw) * ratio + fh, FIGURE_SIDE_MIN), FIGURE_SIZE[1])
+    else:                                             # deep: long side down
+        h = FIGURE_DEPTH_MAX
+        w = min(max((h - fh) / ratio + fw, FIGURE_SIDE_MIN), FIGURE_SIZE[0])
+    return float(w), float(h)

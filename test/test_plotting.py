@@ -102,6 +102,59 @@ def test_plot_run_draws_a_list_or_a_sketch_alike(results, tmp_path):
     assert len(a) > 10_000 and a == b
 
 
+def _png_size(path):
+    """Width and height (pixels) from a PNG's header."""
+    head = path.read_bytes()[16:24]
+    return int.from_bytes(head[:4], 'big'), int.from_bytes(head[4:], 'big')
+
+
+def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path):
+    """
+    A scene about as wide as deep (the demo room) keeps the 10 x 8 inch picture; a
+    corridor 21 m long and 3 m wide (the Freiburg recording's kind) gets a wide one, whose
+    axes, drawn at equal scale, fill a larger share of it than the 10 x 8 inches did
+    (there, a strip under two inches high).
+    """
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+
+    from extended_tracker.state import Estimates
+
+    plot_run(results, tmp_path / 'room.png', title='t')
+    assert _png_size(tmp_path / 'room.png') == (1100, 880)
+    rng = np.random.default_rng(0)
+    corridor = SimpleNamespace(
+        estimates=Estimates.empty(),
+        points=np.column_stack([rng.uniform(0, 20, 500), rng.uniform(-1.5, 1.5, 500)]),
+        background_points=np.zeros((0, 2)))
+    shares = []
+    real_savefig = plt.Figure.savefig
+
+    def savefig(fig, path, *args, **kwargs):
+        # the share of the figure the axes take once drawn
+        real_savefig(fig, path, *args, **kwargs)
+        box = fig.axes[0].get_position()
+        shares.append(box.width * box.height)
+
+    plt.Figure.savefig = savefig
+    try:
+        plot_run([corridor], tmp_path / 'corridor.png', title='t')
+    finally:
+        plt.Figure.savefig = real_savefig
+    w, h = _png_size(tmp_path / 'corridor.png')
+    assert w >= 3 * h
+    fig, ax = plt.subplots(figsize=(10, 8))            # the corridor in the 10 x 8 inches
+    ax.set_aspect('equal')
+    ax.set_xlim(-1, 21)
+    ax.set_ylim(-2.5, 2.5)
+    fig.tight_layout()
+    fig.canvas.draw()
+    box = ax.get_position()
+    plt.close(fig)
+    assert shares[0] > 2 * box.width * box.height
+
+
 def test_the_image_suffixes_are_those_savefig_writes_less_pgf():
     """imagefile keeps matplotlib out of the name check (the bench checks first, then
     times); its list must be the pinned matplotlib's, pgf left out (it needs LaTeX)."""
