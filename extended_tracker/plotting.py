@@ -128,7 +128,8 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         for r in results:
             sketch.add(r)
     pts, bg = sketch.points(), sketch.background()
-    limits = _limits(pts + [sketch.track(lab)[:, :2] for lab in sketch.tracks])
+    tracks = {lab: sketch.track(lab) for lab in sorted(sketch.tracks)}
+    limits = _limits(pts + [seq[:, :2] for seq in tracks.values()])
     fig, ax = plt.subplots(figsize=_figure_size(limits), dpi=110)
     if fov is not None:
         _sensor(ax, *fov)
@@ -142,8 +143,7 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         ax.scatter(p[::step, 0], p[::step, 1], s=0.6, c='0.45', lw=0, alpha=0.5,
                    label='detections')
     short = 0
-    for lab in sorted(sketch.tracks):
-        seq = sketch.track(lab)
+    for lab, seq in tracks.items():
         col = id_colour(lab)
         xy = seq[:, :2]
         if len(seq) < min_scans:
