@@ -108,7 +108,7 @@ def _png_size(path):
     return int.from_bytes(head[:4], 'big'), int.from_bytes(head[4:], 'big')
 
 
-def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path):
+def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path, monkeypatch):
     """
     A scene about as wide as deep (the demo room) keeps the 10 x 8 inch picture; a
     corridor 21 m long and 3 m wide (the Freiburg recording's kind) gets a wide one, whose
@@ -137,11 +137,9 @@ def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path):
         box = fig.axes[0].get_position()
         shares.append(box.width * box.height)
 
-    plt.Figure.savefig = savefig
-    try:
-        plot_run([corridor], tmp_path / 'corridor.png', title='t')
-    finally:
-        plt.Figure.savefig = real_savefig
+    monkeypatch.setattr(plt.Figure, 'savefig', savefig)
+    plot_run([corridor], tmp_path / 'corridor.png', title='t')
+    monkeypatch.undo()
     w, h = _png_size(tmp_path / 'corridor.png')
     assert w >= 3 * h
     fig, ax = plt.subplots(figsize=(10, 8))            # the corridor in the 10 x 8 inches
