@@ -167,6 +167,58 @@ def test_outside_field_of_view_or_beyond_range():
     assert p_d(component_at(20.0, 0.0), sp) == 0.0    # beyond range_max = 13 m
 
 
+@pytest.mark.parametrize('x', [0.1, -0.1, -0.15])          # centre in view, just out, out
+def test_an_object_across_the_sectors_edge_is_seen_in_part(x):
+    """
+    An object straddling the edge of the 180 deg sector (its left edge along +y) is seen
+    in the part of its interval inside the sector, wherever its centre is: p_D is p_D0
+    times that part's share, and its expected centroid is the middle of that part.
+    """
+    y, semi = 3.0, 0.25
+    sp = scan_of([SimObject((x, y), a=semi, b=semi)])
+    vis = detection_model(component_at(x, y, semi), sp, CFG)
+    r = np.hypot(x, y)
+    bearing, half = np.arctan2(y, x), np.arcsin(semi / r)      # max_widen 0: the plain interval
+    edge = np.pi / 2 + np.radians(0.25)                      # the last beam's half-step
+    share = (edge - (bearing - half)) / (2 * half)
+    assert 0.2 < share < 0.8
+    assert vis.p_d[0] == pytest.approx(0.9 * share, abs=1e-9)
+    assert not vis.outside[0]
+    # the seen part's middle, as a bearing: the offset runs across the line of sight (a
+    # tangent, not the arc: within 1e-3 rad at these angles)
+    seen = (vis.offset[0] + [x, y])
+    assert np.arctan2(seen[1], seen[0]) == pytest.approx(0.5 * (bearing - half + edge), abs=1e-3)
+
+
+def test_a_walker_leaving_across_the_sectors_edge_is_followed_out():
+    """
+    A walker crossing the sector's edge at 1.4 m/s, 3 m from the scanner, is reported
+    moving, under one id, in every scan from its confirmation to the last that returns
+    from it, and not after: never as a standing object left at the edge.
+
+    While p_D was 0 once the centre had crossed the edge, no scan refuted the moving
+    track; a restart at rest on the part still in view took its label, and the walker
+    was reported at the edge, at rest and then creeping at half its speed, for some 6
+    scans after its last return (16 of 20 seeds).
+    """
+    walker = SimObject((2.0, 3.0), velocity=(-1.4, 0.0), a=0.25, b=0.2)
+    cfg = from_dict({'background': {'enabled': False}})
+    for seed in range(5):
+        state = PipelineState.initial(cfg)
+        labels, speeds, returns = [], [], []
+        for scan, _ in simulate(Scene((walker,), laser=LaserSpec()), 3.5, seed=seed):
+            state, res = step(state, scan, cfg)
+            est = res.estimates
+            labels.append(est.label.tolist())
+            speeds += np.hypot(est.m[:, 2], est.m[:, 3]).tolist()
+            returns.append(len(res.points))
+        last = max(k for k, n in enumerate(returns) if n)       # its last returns
+        assert 12 <= last < 20 and not any(returns[last + 1:])
+        assert all(lab == [1] for lab in labels[3:last + 1])     # confirmed from scan 3
+        assert not any(labels[last + 2:])                        # gone a scan later at most
+        assert min(speeds[5:]) > 0.7                             # once its speed is known
+
+
 def test_constant_model_ignores_the_scan():
     cfg = from_dict({'detection': {'model': 'constant', 'p_d0': 0.8}})
     sp = scan_of([SimObject((2.0, 0.0), a=0.2, b=0.4)])
@@ -285,9 +337,10 @@ def test_range_minimum_matches_slices():
 def test_visible_fraction_matches_a_per_component_loop(k, halves):
     """
     Blocked share and the shift of the seen part of every interval, narrow and hundreds
-    of beams wide, clear and partly shadowed, against a plain loop over each interval's
-    beams; many wide intervals take the range-minimum path, a few narrow ones the plain
-    gather.
+    of beams wide, clear and partly shadowed, in view and across the field of view's
+    edges (a fifth of the bearings lie within 0.3 rad outside it), against a plain loop
+    over each interval's beams; many wide intervals take the range-minimum path, a few
+    narrow ones the plain gather.
     """
     from extended_tracker.sensing.shadow import _visible_fraction
 
@@ -296,6 +349,9 @@ def test_visible_fraction_matches_a_per_component_loop(k, halves):
     sp = scan_of(objects, LaserSpec(angle_min=-0.75 * np.pi, angle_max=0.75 * np.pi,
                                     n_beams=1081, range_max=30.0, noise_std=0.0, dropout=0.0))
     bearing = rng.uniform(sp.angle_lo, sp.angle_hi, k)
+    out = rng.random(k) < 0.2
+    bearing[out] = np.where(rng.random(out.sum()) < 0.5, sp.angle_lo, sp.angle_hi) \
+        + rng.uniform(-0.3, 0.3, out.sum())
     half = rng.choice(halves, k)
     r_near = rng.uniform(0.5, 10.0, k)
     margin = 0.3
@@ -315,14 +371,17 @@ def test_visible_fraction_matches_a_per_component_loop(k, halves):
         want_shift = 0.5 * (seen_lo + seen_hi) - bearing[i]
         if free and len(free) < len(inside):
             want_shift += np.mean(ang[free]) - np.mean(ang[inside])
-        if not free or seen_hi <= seen_lo or not sp.angle_lo - half_step <= bearing[i] \
-                <= sp.angle_hi + half_step:
+        # the free share of the beams times the share of the interval in view, wherever
+        # the centre is
+        want_frac = len(free) / len(inside) * max(seen_hi - seen_lo, 0.0) / (hi_edge - lo_edge)
+        if not free or seen_hi <= seen_lo:
             want_shift = 0.0                                  # nothing seen
         assert shift[i] == pytest.approx(want_shift, abs=1e-12)
-        if sp.angle_lo <= lo_edge and hi_edge <= sp.angle_hi:     # wholly in view
-            assert frac[i] == pytest.approx(len(free) / len(inside), abs=1e-12)
-            if len(free) == len(inside):
-                assert frac[i] == 1.0 and shift[i] == 0.0     # exactly, not to rounding
+        assert frac[i] == pytest.approx(want_frac, abs=1e-12)
+        if sp.angle_lo <= lo_edge and hi_edge <= sp.angle_hi and len(free) == len(inside):
+            assert frac[i] == 1.0 and shift[i] == 0.0         # exactly, not to rounding
+    if k > 100:                   # centres outside the field of view, seen in part, are there
+        assert np.count_nonzero(out & (frac > 0)) >= 20
 
 
 TURN = 2 * np.pi / 360                                  # one beam of a 360-beam scanner

@@ -105,7 +105,8 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     read 0, and with ``shift_rows=0`` the shift is ``None``: its sums are saved).
 
     ``beam_range`` (B,) holds, per beam in message order, the range that may block (inf
-    where nothing does). Beams of the interval outside the field of view count as hidden.
+    where nothing does). Beams of the interval outside the field of view count as hidden,
+    whether or not the centre is in it.
 
     Both are exact where nothing hides the interval: the fraction is 1 and the shift 0, not
     a rounding away from them. The shift is the mean angle of the free beams less that of
@@ -174,14 +175,17 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     else:
         step = max(step, 1e-9)
         start, end = bearing - half_angle, bearing + half_angle
-        cut_lo = np.maximum(np.minimum(scan.angle_lo - step / 2, end) - start, 0.0)
-        cut_hi = np.maximum(end - np.maximum(scan.angle_hi + step / 2, start), 0.0)
+        fov_lo, fov_hi = scan.angle_lo - step / 2, scan.angle_hi + step / 2
+        cut_lo = np.maximum(np.minimum(fov_lo, end) - start, 0.0)
+        cut_hi = np.maximum(end - np.maximum(fov_hi, start), 0.0)
         span = 2 * half_angle
         in_fov = np.where(span > 0, np.minimum(np.maximum(
             1.0 - (cut_lo + cut_hi) / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
-        centre_in = ((bearing >= scan.angle_lo - step / 2)
-                     & (bearing <= scan.angle_hi + step / 2))
-        visible = np.where(centre_in, frac_visible * in_fov, 0.0)
+        # wherever the centre is: an object leaving across the edge is seen in part until
+        # it has gone (with p_D 0 once its centre crossed, no scan refuted the moving
+        # track, and a restart at rest on the part still in view took its label); an
+        # interval wholly outside is not seen at all, not seen by a rounding residue
+        visible = np.where((end < fov_lo) | (start > fov_hi), 0.0, frac_visible * in_fov)
     if not with_shift:
         return visible, None
     shift = np.where(visible > 0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
