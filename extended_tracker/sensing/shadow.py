@@ -184,7 +184,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         # wherever the centre is: an object leaving across the edge is seen in part until
         # it has gone (with p_D 0 once its centre crossed, no scan refuted the moving
         # track, and a restart at rest on the part still in view took its label); an
-        # interval wholly outside is not seen at all, not seen by a rounding residue
+        # interval wholly outside reads exactly 0, not the rounding residue of 1 - cut/span
         visible = np.where((end < fov_lo) | (start > fov_hi), 0.0, frac_visible * in_fov)
     if not with_shift:
         return visible, None
