@@ -28,6 +28,12 @@ from .state import Estimates, FilterState, find_sorted, NO_LABELS
 # takes its semi-minor axis to 0.16-0.24 m (mixed_traffic)
 SEGMENT_MAX_SEMI_MINOR = 0.25        # m
 SEGMENT_MIN_SEMI_MAJOR = 0.5         # m
+# a piece moving faster than people walk is a vehicle's, and counts from this length on: a
+# nearer object's shadow or a gap in sparse returns cuts a bicycle's side or a car's end
+# into pieces of 0.4-0.5 m, while a person's track (a leg pair at leg height, seen as an
+# arc) reaches 0.4-0.5 m too, standing or walking (MiR's circling walkers)
+SEGMENT_FAST_MIN_SEMI_MAJOR = 0.4    # m
+SEGMENT_FAST_SPEED = 2.5             # m/s
 
 
 def relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerConfig):
@@ -343,7 +349,8 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
     tracks two thin objects. Pieces at most ``SEGMENT_MAX_SEMI_MINOR`` thick and at least
     ``SEGMENT_MIN_SEMI_MAJOR`` long, one of which has an end within ``gap`` of the other
     piece (of its segment, not only of its ends), and whose velocities differ by at most
-    ``speed`` are reported as one object: the rectangle
+    ``speed`` are reported as one object (a piece moving at ``SEGMENT_FAST_SPEED`` or
+    more counts from ``SEGMENT_FAST_MIN_SEMI_MAJOR``): the rectangle
     around them in the frame of the longest piece (its extent the rectangle's second
     moments), moving at their rate-weighted velocity, under the label of the longest
     piece (between pieces of one length, the most ``seniority``, reported scans in a row,
@@ -370,11 +377,13 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
         return est, 0
     # the semi-major axis squared is at most the trace: people are ruled out at once
     X = est.X
-    long_ = (X[:, 0, 0] + X[:, 1, 1] >= SEGMENT_MIN_SEMI_MAJOR ** 2).nonzero()[0]
+    long_ = (X[:, 0, 0] + X[:, 1, 1] >= SEGMENT_FAST_MIN_SEMI_MAJOR ** 2).nonzero()[0]
     if len(long_) < 2:
         return est, 0
     major, minor, yaw = (a[long_] for a in est.axes())
-    thin = (minor <= SEGMENT_MAX_SEMI_MINOR) & (major >= SEGMENT_MIN_SEMI_MAJOR)
+    fast = _norm(est.m[long_, 2:], 1) >= SEGMENT_FAST_SPEED
+    thin = (minor <= SEGMENT_MAX_SEMI_MINOR) & (
+        (major >= SEGMENT_MIN_SEMI_MAJOR) | (fast & (major >= SEGMENT_FAST_MIN_SEMI_MAJOR)))
     seg, major, minor, yaw = long_[thin], major[thin], minor[thin], yaw[thin]
     if len(seg) < 2:
         return est, 0

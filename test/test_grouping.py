@@ -80,6 +80,30 @@ def test_pieces_apart_moving_differently_or_not_thin_stay_apart():
     assert group_segments(est, np.array([5, 5]), gap=0.0, speed=2.0)[1] == 0
 
 
+def test_a_shorter_piece_is_grouped_only_moving_faster_than_people_walk():
+    """
+    A bicycle's side cut in two by a nearer pedestrian's shadow: a 1.0 m piece and a
+    0.78 m one (semi-major 0.45 m, under the 0.5 m that keeps people apart), 0.2 m
+    apart along one line. At 3.5 m/s they are one report; at a walker's 1.4 m/s the
+    same pieces are what two people's leg pairs side by side look like at leg height,
+    and stay two.
+    """
+    def cut_side(speed):
+        return pieces([(3, (0.0, 0.0), (1.0, 0.0), 0.02, (speed, 0.0), 10.0),
+                       (8, (1.2, 0.0), (1.98, 0.0), 0.02, (speed, 0.0), 8.0)])
+    out, n = group_segments(cut_side(3.5), np.array([9, 5]), gap=0.5, speed=2.0)
+    assert n == 1 and out.label.tolist() == [3]           # the longer piece's label
+    np.testing.assert_allclose(out.m[0, :2], [0.99, 0.0], atol=1e-9)
+    for speed in (0.0, 1.4, 2.4):
+        est = cut_side(speed)
+        out, n = group_segments(est, np.array([9, 5]), gap=0.5, speed=2.0)
+        assert n == 0 and out is est, speed
+    # fast, but shorter still (0.6 m, semi-major 0.35 m): no longer than a person is wide
+    est = pieces([(3, (0.0, 0.0), (1.0, 0.0), 0.02, (3.5, 0.0), 10.0),
+                  (8, (1.2, 0.0), (1.8, 0.0), 0.02, (3.5, 0.0), 8.0)])
+    assert group_segments(est, np.array([9, 5]), gap=0.5, speed=2.0)[1] == 0
+
+
 def test_a_corner_piece_with_some_of_the_side_is_grouped():
     """The end piece the filter tracks often holds the car's end and a stretch of its side
     next to the corner (in mixed_traffic, semi-axes 1.05-1.14 m by 0.16-0.24 m): thicker
