@@ -172,6 +172,9 @@ def cmd_evaluate(args) -> int:
     print(f'cardinality error {score.cardinality_error:.3f} per scan')
     print(f'id switches       {score.id_switches}')
     print(f'fragmentations    {score.fragmentations}')
+    if score.hidden:
+        print(f'hidden kept       {score.hidden_kept} of {score.hidden} object-scans no beam '
+              'reached had an estimate')
     t = (stamps - stamps[0]) * 1e-9
     print('over time (per second): ' + '  '.join(
         f'{int(s)}s {np.mean([g.total for g, tt in zip(per, t) if int(tt) == s]):.2f}'

@@ -104,6 +104,13 @@ def truth_of(objects, view=None):
             np.array([o.extent for o in objs]).reshape(-1, 2, 2))
 
 
+def hidden_of(objects, view=None) -> np.ndarray:
+    """Which objects of :func:`truth_of`'s set (same order) no beam reaches."""
+    objs = list(objects)
+    keep = in_view([o.centre for o in objs], view)
+    return np.array([o.visible_beams == 0 for o, k in zip(objs, keep) if k], dtype=bool)
+
+
 def run_scenario(name: str, variant: dict):
     """
     Run one scenario with a config variant; return the TrackScore and per-scan GOSPA.
@@ -115,29 +122,35 @@ def run_scenario(name: str, variant: dict):
     factory, seconds, seed, overrides, _ = SCENARIOS[name]
     cfg = from_dict(_merge(_merge(SUITE_CONFIG, overrides), variant))
     state = PipelineState.initial(cfg)
-    truth_seq, est_seq = [], []
+    truth_seq, est_seq, hidden_seq = [], [], []
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
         state, res = step(state, scan, cfg)
         view = view_of(scan)
         truth_seq.append(truth_of(objs, view))
+        hidden_seq.append(hidden_of(objs, view))
         e = res.estimates
         shown = in_view(e.m[:, :2], view)
         est_seq.append((e.label[shown].tolist(), e.m[shown, :2], e.X[shown]))
-    return score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P)
+    return score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P, hidden_seq)
 
 
 def results_table() -> str:
     """The README table: one row per scenario and variant."""
     lines = ['| scenario | filter, p_D | mean GOSPA (m) | missed | false | card. error '
-             '| id switches | fragmentations |',
-             '|---|---|---|---|---|---|---|---|']
+             '| id switches | fragmentations | hidden kept |',
+             '|---|---|---|---|---|---|---|---|---|']
     for name in SCENARIOS:
         for vname, variant in VARIANTS.items():
             s, _ = run_scenario(name, variant)
             lines.append(f'| {name} | {vname} | {s.gospa_mean:.2f} | {s.missed_mean:.2f} | '
                          f'{s.false_mean:.2f} | {s.cardinality_error:.2f} | {s.id_switches} | '
-                         f'{s.fragmentations} |')
+                         f'{s.fragmentations} | {hidden_kept(s)} |')
     return '\n'.join(lines)
+
+
+def hidden_kept(score) -> str:
+    """``kept / hidden`` object-scans, ``-`` where nothing was hidden."""
+    return f'{score.hidden_kept} / {score.hidden}' if score.hidden else '-'
 
 
 def scenario_notes() -> str:
@@ -156,7 +169,9 @@ def write_readme_results(readme: Path) -> None:
     body = (f'{begin}\nGOSPA: alpha = 2, c = {GOSPA_C:g} m, p = {GOSPA_P:g}, '
             'Gaussian-Wasserstein base distance between ellipses; missed and false are the '
             'GOSPA parts (c^p/2 per object, mean per scan); card. error is the mean '
-            '|estimated - true| count per scan. Scored over the region the scanner covers '
+            '|estimated - true| count per scan; hidden kept counts the object-scans where '
+            'no beam reached an object (others hid it) and, of those, the ones where an '
+            'estimate was assigned to it. Scored over the region the scanner covers '
             '(its sector, out to its range): the truth is every object whose centre lies '
             'there, hidden ones included, and estimates outside it are not scored. The '
             'filter takes clutter as falling on random beams at uniform ranges '
@@ -192,7 +207,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
 
         plot = image_path(plot)
     store = message_typestore()
-    truth_seq, est_seq, stamps, counts = [], [], [], []
+    truth_seq, est_seq, stamps, counts, hidden_seq = [], [], [], [], []
     try:
         reader = Reader(output_bag)
     except Exception as err:  # rosbags raises several unrelated types for broken bags
@@ -214,6 +229,9 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             est = msg.objects
             est_m = np.array([[o.position.x, o.position.y] for o in est]).reshape(-1, 2)
             est = [o for o, k in zip(est, in_view(est_m, view)) if k]
+            hidden_seq.append(np.array([o.get('visible_beams') == 0 for o in objs],
+                                       dtype=bool)
+                              if all('visible_beams' in o for o in objs) else None)
             truth_seq.append(([o['id'] for o in objs],
                               np.array([o['centre'] for o in objs]).reshape(-1, 2),
                               np.array([o['extent'] for o in objs]).reshape(-1, 2, 2)))
@@ -226,7 +244,9 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             counts.append((len(objs), len(est)))
     if not stamps:
         raise BagError('no /tracks message matches a truth stamp')
-    score, per = score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P)
+    if any(h is None for h in hidden_seq):
+        hidden_seq = None                  # an older truth file: which were hidden unknown
+    score, per = score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P, hidden_seq)
     if plot:
         _plot(plot, np.array(stamps), per, np.array(counts))
     return score, per, np.array(stamps)
@@ -275,5 +295,5 @@ def _plot(path, stamps, per, counts):
     plt.close(fig)
 
 
-__all__ = ['SCENARIOS', 'VARIANTS', 'evaluate_bag', 'results_table', 'run_scenario',
-           'write_readme_results']
+__all__ = ['SCENARIOS', 'VARIANTS', 'evaluate_bag', 'hidden_of', 'results_table',
+           'run_scenario', 'write_readme_results']

@@ -91,9 +91,11 @@ class TrackScore:
     id_switches: int
     fragmentations: int
     scans: int
+    hidden: int = 0              # object-scans with the object wholly hidden (when known)
+    hidden_kept: int = 0         # of those, the object assigned an estimate
 
 
-def score_sequence(truth_seq, est_seq, c: float = 2.0, p: float = 2.0):
+def score_sequence(truth_seq, est_seq, c: float = 2.0, p: float = 2.0, hidden_seq=None):
     """
     Score a run.
 
@@ -101,6 +103,9 @@ def score_sequence(truth_seq, est_seq, c: float = 2.0, p: float = 2.0):
     ----------
     truth_seq : list of (ids, m (n, 2), X (n, 2, 2)) per scan
     est_seq : list of (labels, m (k, 2), X (k, 2, 2)) per scan
+    hidden_seq : list of (n,) bool arrays per scan, optional
+        Which true objects no beam reaches (hidden by others): ``hidden`` counts them over
+        the run, ``hidden_kept`` those the GOSPA assignment gives an estimate.
 
     Returns
     -------
@@ -114,11 +119,17 @@ def score_sequence(truth_seq, est_seq, c: float = 2.0, p: float = 2.0):
     """
     per_scan = []
     last_label, gap_open = {}, {}
-    switches = frags = 0
+    switches = frags = hidden = kept = 0
     card_err = []
-    for (tid, tm, tX), (lab, em, eX) in zip(truth_seq, est_seq):
+    if hidden_seq is None:
+        hidden_seq = [None] * len(truth_seq)
+    for (tid, tm, tX), (lab, em, eX), hid in zip(truth_seq, est_seq, hidden_seq):
         g = gospa(tm, tX, em, eX, c, p)
         per_scan.append(g)
+        if hid is not None:
+            hid = np.asarray(hid, dtype=bool).reshape(len(tm))
+            hidden += int(np.count_nonzero(hid))
+            kept += sum(1 for i, _ in g.pairs if hid[i])
         card_err.append(abs(len(tm) - len(em)))
         assigned = {int(tid[i]): int(lab[j]) for i, j in g.pairs}
         for t in map(int, tid):
@@ -138,4 +149,5 @@ def score_sequence(truth_seq, est_seq, c: float = 2.0, p: float = 2.0):
         missed_mean=float(np.mean([g.missed for g in per_scan])) if per_scan else 0.0,
         false_mean=float(np.mean([g.false for g in per_scan])) if per_scan else 0.0,
         cardinality_error=float(np.sum(card_err) / n),
-        id_switches=switches, fragmentations=frags, scans=len(per_scan)), per_scan
+        id_switches=switches, fragmentations=frags, scans=len(per_scan), hidden=hidden,
+        hidden_kept=kept), per_scan

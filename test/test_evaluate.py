@@ -27,6 +27,8 @@ def test_replayed_bag_scores_against_its_truth(tmp_path):
     # two pedestrians, one hidden behind the other for ~2 s: kept, so GOSPA stays small
     # (a missed pedestrian alone costs sqrt(2) = 1.41 m in a scan)
     assert score.gospa_mean < 0.8 and score.id_switches == 0
+    # the truth file says which scans no beam reached the hidden one in: all kept
+    assert score.hidden == score.hidden_kept > 5
     assert (tmp_path / 'plots' / 'g.png').stat().st_size > 10_000
     exe = Path(sys.executable).with_name('extended-tracker')
     done = subprocess.run([str(exe), 'evaluate', str(tmp_path / 'out'), '--truth',
@@ -34,6 +36,16 @@ def test_replayed_bag_scores_against_its_truth(tmp_path):
                           text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert 'mean GOSPA' in done.stdout and 'id switches       0' in done.stdout
+    assert f'hidden kept       {score.hidden} of {score.hidden}' in done.stdout
+    # a truth file without the beams on each object: the rest scored as before
+    truth = json.loads((tmp_path / 'scans' / 'truth.json').read_text())
+    for rec in truth['scans']:
+        for obj in rec['objects']:
+            del obj['visible_beams']
+    (tmp_path / 'older.json').write_text(json.dumps(truth))
+    older, _, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'older.json')
+    assert (older.hidden, older.hidden_kept) == (0, 0)
+    assert older.gospa_mean == score.gospa_mean and older.id_switches == score.id_switches
 
 
 def test_the_readme_figures_of_a_scene_that_starts_with_a_person_standing(tmp_path):

@@ -76,3 +76,21 @@ def test_id_switches_and_fragmentation():
     assert score.id_switches == 1 and score.fragmentations == 1
     assert score.cardinality_error == pytest.approx(1 / 6)
     assert per[2].n_missed == 1
+
+
+def test_hidden_objects_kept_are_counted_by_the_assignment():
+    """
+    Two objects over three scans; the first is hidden in scans 1 and 2 and has an
+    estimate in scan 1 only, the second is in view with an estimate throughout: 2 hidden
+    object-scans, 1 kept. An estimate too far to be assigned (over c) does not keep one.
+    """
+    I = 0.04 * np.eye(2)[None].repeat(2, axis=0)
+    truth = [([1, 2], np.array([[0.0, 0.0], [5.0, 0.0]]), I) for _ in range(3)]
+    both = np.array([[0.1, 0.0], [5.0, 0.1]])
+    est = [([1, 2], both, I), ([1, 2], both, I),
+           ([1, 2], np.array([[2.5, 0.0], [5.0, 0.1]]), I)]      # 2.5 m off: not assigned
+    hidden = [np.array([False, False]), np.array([True, False]), np.array([True, False])]
+    score, _ = score_sequence(truth, est, hidden_seq=hidden)
+    assert (score.hidden, score.hidden_kept) == (2, 1)
+    score, _ = score_sequence(truth, est)                        # not known: none counted
+    assert (score.hidden, score.hidden_kept) == (0, 0)
