@@ -198,8 +198,8 @@ def test_a_walker_leaving_across_the_sectors_edge_is_followed_out():
 
     While p_D was 0 once the centre had crossed the edge, no scan refuted the moving
     track; a restart at rest on the part still in view took its label, and the walker
-    was reported at the edge, at rest and then creeping at half its speed, for some 6
-    scans after its last return (16 of 20 seeds).
+    was reported at the edge, at rest and then creeping at under half its speed, for 4-6
+    scans after its last return (in all of 20 seeds).
     """
     walker = SimObject((2.0, 3.0), velocity=(-1.4, 0.0), a=0.25, b=0.2)
     cfg = from_dict({'background': {'enabled': False}})
