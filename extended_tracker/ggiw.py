@@ -480,6 +480,11 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     in the code.
 
     """
+    if not len(comp):
+        # a scan without returns (the background's warm-up, an empty scene): nothing to
+        # compute, and the batch below costs some 60 us of array calls on empty arrays
+        return PairUpdate(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 4)),
+                          np.zeros((0, 4, 4)), np.zeros(0), np.zeros((0, 2, 2)))
     n = stats.n[cell].astype(float)
     zbar = stats.mean[cell]
     Z = stats.scatter[cell]

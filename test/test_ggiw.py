@@ -181,6 +181,19 @@ def test_batched_update_equals_reference_loop():
         assert (out.v[k], out.alpha[k], out.beta[k]) == pytest.approx((v2, a2, b2))
 
 
+def test_no_pairs_give_an_empty_update_shaped_as_the_batch():
+    """A scan without returns: no pairs, and an update whose arrays have the batch's
+    shapes with no rows (what the batch computed on empty arrays before its shortcut)."""
+    rng = np.random.default_rng(4)
+    mix = random_mixture(rng, 3)
+    st = cell_stats(np.zeros((0, 2)), [])
+    none = np.zeros(0, dtype=np.int64)
+    out = update_pairs(mix, none, st, none, RHO, R, np.ones(3), np.zeros(3), np.zeros((3, 2)))
+    shapes = [a.shape for a in (out.log_lik, out.alpha, out.beta, out.m, out.P, out.v, out.V)]
+    assert shapes == [(0,), (0,), (0,), (0, 4), (0, 4, 4), (0,), (0, 2, 2)]
+    assert len(out.take(none).mixture(np.zeros(0), none)) == 0
+
+
 def test_miss_factor_includes_zero_point_detections():
     mix = one_component(20, np.eye(2) * 0.05, alpha=3.0, beta=1.5)
     p_d = np.array([0.8])
