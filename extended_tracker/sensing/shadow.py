@@ -286,6 +286,9 @@ def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndar
     line, where the side's thin extent holds it to centimetres, and the track's velocity
     turned off the car's heading until the gate let go of its returns.
     """
+    if not np.logical_or.reduce(shift != 0.0):
+        # nothing part hidden (most scans): the offsets are all 0 without the products
+        return np.zeros((len(shift), 2))
     Xu = einsum('kij,kj->ki', X, u)
     uXu = einsum('ki,ki->k', u, Xu)
     # an object thin across the line of sight (seen end on) has no width to shift along
