@@ -92,23 +92,27 @@ def view_of(scan):
     return (scan.angle_min, scan.angle_max, scan.range_max)
 
 
+def objects_in_view(objects, view=None) -> list:
+    """The objects whose centre lies in ``view`` (see :func:`in_view`), in their order."""
+    objs = list(objects)
+    keep = in_view([o.centre for o in objs], view)
+    return [o for o, k in zip(objs, keep) if k]
+
+
 def truth_of(objects, view=None):
     """
     Truth set of one scan: the objects whose centre lies in ``view`` (see
     :func:`in_view`), hidden ones included (a tracker should keep them).
     """
-    objs = list(objects)
-    keep = in_view([o.centre for o in objs], view)
-    objs = [o for o, k in zip(objs, keep) if k]
+    objs = objects_in_view(objects, view)
     return ([o.id for o in objs], np.array([o.centre for o in objs]).reshape(-1, 2),
             np.array([o.extent for o in objs]).reshape(-1, 2, 2))
 
 
 def hidden_of(objects, view=None) -> np.ndarray:
     """Which objects of :func:`truth_of`'s set (same order) no beam reaches."""
-    objs = list(objects)
-    keep = in_view([o.centre for o in objs], view)
-    return np.array([o.visible_beams == 0 for o, k in zip(objs, keep) if k], dtype=bool)
+    return np.array([o.visible_beams == 0 for o in objects_in_view(objects, view)],
+                    dtype=bool)
 
 
 def run_scenario(name: str, variant: dict):
@@ -126,8 +130,9 @@ def run_scenario(name: str, variant: dict):
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
         state, res = step(state, scan, cfg)
         view = view_of(scan)
-        truth_seq.append(truth_of(objs, view))
-        hidden_seq.append(hidden_of(objs, view))
+        objs = objects_in_view(objs, view)             # once, for the truth and its hidden
+        truth_seq.append(truth_of(objs))
+        hidden_seq.append(hidden_of(objs))
         e = res.estimates
         shown = in_view(e.m[:, :2], view)
         est_seq.append((e.label[shown].tolist(), e.m[shown, :2], e.X[shown]))
