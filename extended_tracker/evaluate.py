@@ -234,8 +234,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             est = msg.objects
             est_m = np.array([[o.position.x, o.position.y] for o in est]).reshape(-1, 2)
             est = [o for o, k in zip(est, in_view(est_m, view)) if k]
-            hidden_seq.append(np.array([o.get('visible_beams') == 0 for o in objs],
-                                       dtype=bool)
+            hidden_seq.append(np.array([o['visible_beams'] == 0 for o in objs], dtype=bool)
                               if all('visible_beams' in o for o in objs) else None)
             truth_seq.append(([o['id'] for o in objs],
                               np.array([o['centre'] for o in objs]).reshape(-1, 2),
