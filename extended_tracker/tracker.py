@@ -162,7 +162,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                  rate_scale: np.ndarray | None = None, clutter_area: float | None = None,
                  visibility: np.ndarray | None = None,
                  centroid_offset: np.ndarray | None = None, pair_p_d=None,
-                 clutter_log_density: np.ndarray | None = None):
+                 clutter_log_density: np.ndarray | None = None,
+                 hold: np.ndarray | None = None):
     """
     Multi-object update of a predicted state with one scan's detections.
 
@@ -191,6 +192,12 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     clutter_log_density : (m,) array, optional
         ``log c(z)`` of each detection, the clutter spatial density there (1/m^2); uniform
         over ``clutter_area`` if omitted.
+    hold : (n,) bool array, optional
+        Components whose missed-detection factor takes p_D 0 where no (component, cell)
+        pair of theirs is kept (none gated, or p_D 0 where each would put them): a
+        confirmed track wholly in shadow (``pipeline._hold``). Where a pair is, ``p_d``
+        stands, so an object coming back into view is not counted both missed and
+        detected at full weight.
 
     Returns
     -------
@@ -262,6 +269,10 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         pair_rows = keep.nonzero()[0]
         comp, cell, p_d_pair, pair_lik = comp[keep], cell[keep], p_d_pair[keep], pair_lik[keep]
     diag.pairs = len(comp)
+    if hold is not None:
+        unpaired = np.asarray(hold, dtype=bool).copy()
+        unpaired[comp] = False
+        p_d = np.where(unpaired, 0.0, p_d)
     log_pd0 = _log_constant(cfg.detection.p_d0)
 
     log_g = neg_inf((n_comp + 1, n_cells))

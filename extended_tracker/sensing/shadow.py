@@ -36,6 +36,7 @@ class Visibility:
     rate_scale: np.ndarray | None
     offset: np.ndarray | None = None
     outside: np.ndarray | None = None
+    hidden: np.ndarray | None = None       # the plain interval (extent alone) wholly shadowed
 
 
 def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
@@ -249,7 +250,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
             np.concatenate([bearing, bearing]), np.concatenate([half, half_widened]),
             np.concatenate([r_near, r_near]), scan, scan.ranges, det.shadow_margin,
             shift_rows=n)                             # the offset is the plain interval's
-        visible, turn = both[n:], turn[:n]
+        plain, visible, turn = both[:n], both[n:], turn[:n]
     else:
         plain, turn = lookup(half)
         visible = lookup(half_widened)[0] if widen else plain
@@ -262,7 +263,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
                     | (bearing - half > scan.angle_hi + step))
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
-    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside)
+    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0)
 
 
 def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndarray:
