@@ -515,7 +515,7 @@ def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
     A walker passes behind a standing person at 0.3 m/s, wholly hidden for 3.2 s (PHD
     mode, where no cardinality carries the weight). As it coasts its position spreads and
     the widened interval reaches past the shadow: without the hold those misses wore its
-    weight below the reporting threshold for 7-35 scans of every seed's run; with it the
+    weight below the reporting threshold for 5-33 scans of each seed's run; with it the
     walker is reported in every scan after start-up, under one id.
     """
     cfg = from_dict({'detection': {'hold_hidden': hold}, 'background': {'enabled': False},
