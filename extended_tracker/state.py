@@ -202,6 +202,7 @@ class StepDiagnostics:
     handed_over: int = 0
     grouped: int = 0
     unexplained: int = 0
+    held: int = 0
 
 
 def find_sorted(ascending: np.ndarray, a: np.ndarray):

@@ -273,6 +273,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         unpaired = np.asarray(hold, dtype=bool).copy()
         unpaired[comp] = False
         p_d = np.where(unpaired, 0.0, p_d)
+        diag.held = int(np.count_nonzero(unpaired))
     log_pd0 = _log_constant(cfg.detection.p_d0)
 
     log_g = neg_inf((n_comp + 1, n_cells))

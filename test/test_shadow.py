@@ -522,21 +522,25 @@ def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
                      'model': {'mode': 'phd'}})
     scene = Scene((SimObject((2.5, 0.0), (0.0, 0.0), a=0.2, b=0.3, kind='standing'),
                    SimObject((6.0, -1.7), (0.0, 0.3))), laser=LaserSpec())
-    gaps = []
+    gaps, held = [], []
     for seed in range(6):
         state = PipelineState.initial(cfg)
-        ids, hidden = [], 0
+        ids, hidden, n_held = [], 0, 0
         for scan, truth in simulate(scene, 10.0, seed=seed):
             state, res = step(state, scan, cfg)
             walker = truth[1]
             hidden += walker.visible_beams == 0
+            n_held += res.diagnostics['held'] > 0
             est = res.estimates
             d = np.linalg.norm(est.m[:, :2] - walker.centre, axis=1) if len(est) else []
             ids.append(int(est.label[np.argmin(d)]) if len(d) and min(d) < 0.8 else None)
         assert hidden >= 30
         assert len({x for x in ids if x is not None}) == 1
         gaps.append(ids[3:].count(None))
+        held.append(n_held)
     if hold:
         assert gaps == [0] * 6, gaps
+        assert min(held) >= 10, held               # the diagnostics count the scans held
     else:
         assert min(gaps) >= 5, gaps
+        assert held == [0] * 6, held
