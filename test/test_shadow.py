@@ -1,6 +1,7 @@
 """
 Scan-shadow p_D: fully behind ~ 0, half behind ~ p_D0 / 2, in the open ~ p_D0, outside
-the field of view or beyond range 0; and the occlusion scenario with its contrast.
+the field of view or beyond range 0; the occlusion scenario with its contrast; and the
+hold of confirmed tracks wholly in shadow.
 """
 
 from collections import Counter
@@ -14,9 +15,9 @@ from extended_tracker.memo import evolve
 from extended_tracker.pipeline import _hold, PipelineState, step
 from extended_tracker.sensing.scan import scan_to_points
 from extended_tracker.sensing.shadow import detection_model, Visibility
+from extended_tracker.sim.laser import LaserSpec, occlusion_scene, Scene, SimObject, simulate
 from extended_tracker.state import FilterState
 from extended_tracker.tracker import filter_step, predict_state, update_state
-from extended_tracker.sim.laser import LaserSpec, occlusion_scene, Scene, SimObject, simulate
 
 from lastbit import assert_same_tracks
 
