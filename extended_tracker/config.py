@@ -72,7 +72,8 @@ class DetectionConfig:
     min_visibility: float = _f(0.05, 'visible fraction below which an object counts as hidden',
                                '', 0.0, 1.0)
     hold_hidden: bool = _f(True, 'a confirmed track whose own extent is wholly in shadow, '
-                           'with no return gated to it, is not worn down by misses')
+                           'with no return on its predicted outline, is not worn down by '
+                           'misses')
 
 
 @dataclass(frozen=True)

@@ -359,8 +359,9 @@ def _hold(pred: FilterState, vis, cfg: TrackerConfig):
     prediction's spread, not a sign that the object is gone, and counting it scan after
     scan retired tracks the scan-shadow model is there to keep (a crowd's walkers). A
     label not yet confirmed still fades so: a spurious track beside a person would
-    otherwise live on in its shadow. ``update_state`` holds only where no return is
-    gated to the component, so an object coming out of the shadow is updated as before.
+    otherwise live on in its shadow. ``update_state`` holds only where no return lies on
+    the component's predicted outline, so an object coming out of the shadow there is
+    updated as before.
     """
     if not cfg.detection.hold_hidden or vis.hidden is None:
         return None

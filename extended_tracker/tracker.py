@@ -193,11 +193,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         ``log c(z)`` of each detection, the clutter spatial density there (1/m^2); uniform
         over ``clutter_area`` if omitted.
     hold : (n,) bool array, optional
-        Components whose missed-detection factor takes p_D 0 where no (component, cell)
-        pair of theirs is kept (none gated, or p_D 0 where each would put them): a
-        confirmed track wholly in shadow (``pipeline._hold``). Where a pair is, ``p_d``
-        stands, so an object coming back into view is not counted both missed and
-        detected at full weight.
+        Components whose missed-detection factor takes p_D 0 unless a cell of theirs lies
+        on their predicted outline (:func:`_held_p_d`): a confirmed track wholly in shadow
+        (``pipeline._hold``).
 
     Returns
     -------
@@ -270,10 +268,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         comp, cell, p_d_pair, pair_lik = comp[keep], cell[keep], p_d_pair[keep], pair_lik[keep]
     diag.pairs = len(comp)
     if hold is not None:
-        unpaired = np.asarray(hold, dtype=bool).copy()
-        unpaired[comp] = False
-        p_d = np.where(unpaired, 0.0, p_d)
-        diag.held = int(np.count_nonzero(unpaired))
+        p_d, diag.held = _held_p_d(mix, p_d, hold, comp, stats.mean[cell], R)
     log_pd0 = _log_constant(cfg.detection.p_d0)
 
     log_g = neg_inf((n_comp + 1, n_cells))
@@ -371,6 +366,34 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                                          cfg.extraction.group_gap,
                                          cfg.extraction.group_speed)
     return new_state, shown, diag
+
+
+HOLD_OUTLINE = 1.0    # squared distance within which a cell is on a held component's outline
+
+
+def _held_p_d(mix: Mixture, p_d: np.ndarray, hold: np.ndarray, comp: np.ndarray,
+              cell_mean: np.ndarray, R: np.ndarray):
+    """
+    ``p_d`` with 0 for the ``hold`` components that no cell lies on, and how many those
+    are.
+
+    A cell lies on a component when it is one of its pairs (``comp``, centroids
+    ``cell_mean``) and its centroid is within the component's predicted outline, the
+    expected extent grown by the position covariance and the sensor noise (squared
+    distance ``HOLD_OUTLINE``). There the object may be in view after all, as when a
+    track lags behind its person and its own returns shadow the prediction, and the
+    miss stands: held, the missed copy would keep all its weight beside the detected
+    ones, and the label split (the leg_tracker demo). A cell only in the gate, beside
+    the outline, is most often the occluder in front of a hidden object, and holds
+    nothing back.
+    """
+    held = np.asarray(hold, dtype=bool).copy()
+    if len(comp):
+        e = cell_mean - mix.m[comp, :2]
+        S = mix.expected_extent(comp) + mix.P[comp, :2, :2] + R
+        on = einsum('ki,kij,kj->k', e, inv2(S), e) <= HOLD_OUTLINE
+        held[comp[on]] = False
+    return np.where(held, 0.0, p_d), int(np.count_nonzero(held))
 
 
 def _pad(a, n: int, fill: float):

@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.ggiw import cell_stats, gate_pairs, IW_OFFSET, Mixture
 from extended_tracker.memo import evolve
 from extended_tracker.pipeline import _hold, PipelineState, step
 from extended_tracker.sensing.scan import scan_to_points
 from extended_tracker.sensing.shadow import detection_model, Visibility
 from extended_tracker.sim.laser import LaserSpec, occlusion_scene, Scene, SimObject, simulate
 from extended_tracker.state import FilterState
-from extended_tracker.tracker import filter_step, predict_state, update_state
+from extended_tracker.tracker import (filter_step, gate_threshold, predict_state,
+                                      sensor_noise, update_state)
 
 from lastbit import assert_same_tracks
 
@@ -463,34 +464,48 @@ def two_tracks(cfg, scans=12, seed=3):
     return state, rng
 
 
-def test_a_hold_is_p_d_zero_for_a_component_no_return_is_gated_to_and_nothing_else():
+@pytest.mark.parametrize('returns, held', [(None, True), ((0.5, 0.0), True), ((0.0, 0.0), False)])
+def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(returns, held):
     """
-    ``update_state``'s ``hold``. Oracle: the same update with p_D 0 given for the held
-    components that no cell is gated to (the object 10 m from every return of the scan),
-    p_D as it was for the held one the returns fall on; every field of the posterior
-    and the cardinality agree. The hold keeps the unseen object's weight (0.94 here),
-    which one plain miss at p_D 0.9 takes to about half (0.48).
+    ``update_state``'s ``hold``, for a second tracked object (10 m from the first) that
+    has no returns, returns 0.5 m beside its predicted centre (in its gate, off its
+    outline: an occluder's edge) or returns on it. Oracle: the same update with p_D 0
+    given to that object's component where it is held (in the missed-detection factor;
+    its pairs keep theirs), as it was where it is not; every field of the posterior and
+    the cardinality agree. Held, the object keeps its weight
+    (0.94 with no returns), which one plain miss at p_D 0.9 takes to about half (0.48).
     """
     cfg = from_dict({})
     state, rng = two_tracks(cfg)
     pred = predict_state(state, 0.1, cfg)
     mix = pred.mixture
-    pts = np.array([3.0, 1.0]) + rng.normal(0, 0.1, (8, 2))     # the first object only
     far = mix.m[:, 1] < -4.0
-    assert far.any() and (~far).any()
+    assert far.sum() == 1 and (~far).any()
+    pts = np.array([3.0, 1.0]) + rng.normal(0, 0.1, (8, 2))     # on the first object
+    if returns is not None:
+        spot = mix.m[far, :2][0] + returns
+        pts = np.vstack([pts, spot + rng.normal(0, 0.02, (8, 2))])
+        stats = cell_stats(pts, [np.arange(8, 16)])
+        comp, _ = gate_pairs(mix, stats, cfg.model.rho, sensor_noise(cfg), gate_threshold(cfg))
+        assert far[comp].any()                                   # in the object's gate
     p_d = np.full(len(mix), 0.9)
-    held, _, _ = update_state(pred, pts, p_d, cfg, clutter_area=200.0,
-                              hold=np.ones(len(mix), dtype=bool))
-    oracle, _, _ = update_state(pred, pts, np.where(far, 0.0, p_d), cfg, clutter_area=200.0)
-    plain, _, _ = update_state(pred, pts, p_d, cfg, clutter_area=200.0)
+    hold, _, diag = update_state(pred, pts, p_d, cfg, clutter_area=200.0,
+                                 hold=np.ones(len(mix), dtype=bool))
+    # the hold is in the missed-detection factor alone: the pairs keep their p_D
+    oracle, _, _ = update_state(pred, pts, np.where(far & held, 0.0, p_d), cfg,
+                                clutter_area=200.0,
+                                pair_p_d=lambda _mix, comp, _m, _P: p_d[comp])
     for f in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label'):
-        np.testing.assert_array_equal(getattr(held.mixture, f), getattr(oracle.mixture, f))
-    np.testing.assert_array_equal(held.log_card, oracle.log_card)
+        np.testing.assert_array_equal(getattr(hold.mixture, f), getattr(oracle.mixture, f))
+    np.testing.assert_array_equal(hold.log_card, oracle.log_card)
+    assert diag.held == int(held)
+    if returns is None:
+        plain, _, _ = update_state(pred, pts, p_d, cfg, clutter_area=200.0)
 
-    def weight_far(s):
-        return s.mixture.w[s.mixture.m[:, 1] < -4.0].sum()
+        def weight_far(s):
+            return s.mixture.w[s.mixture.m[:, 1] < -4.0].sum()
 
-    assert weight_far(held) > 0.9 and weight_far(plain) < 0.6
+        assert weight_far(hold) > 0.9 and weight_far(plain) < 0.6
 
 
 def test_only_confirmed_labels_wholly_in_shadow_are_held():
