@@ -388,11 +388,12 @@ def _held_p_d(mix: Mixture, p_d: np.ndarray, hold: np.ndarray, comp: np.ndarray,
     nothing back.
     """
     held = np.asarray(hold, dtype=bool).copy()
-    if len(comp):
-        e = cell_mean - mix.m[comp, :2]
-        S = mix.expected_extent(comp) + mix.P[comp, :2, :2] + R
-        on = einsum('ki,kij,kj->k', e, inv2(S), e) <= HOLD_OUTLINE
-        held[comp[on]] = False
+    rows = held[comp].nonzero()[0]                     # the held components' pairs
+    if len(rows):
+        c = comp[rows]
+        e = cell_mean[rows] - mix.m[c, :2]
+        S = mix.expected_extent(c) + mix.P[c, :2, :2] + R
+        held[c[einsum('ki,kij,kj->k', e, inv2(S), e) <= HOLD_OUTLINE]] = False
     return np.where(held, 0.0, p_d), int(np.count_nonzero(held))
 
 
