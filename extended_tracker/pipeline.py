@@ -314,9 +314,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         vis = evolve(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
                      rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
                      offset=vis.offset[keep_c], outside=vis.outside[keep_c],
-                     hidden=None if vis.hidden is None else vis.hidden[keep_c])
+                     shadowed=None if vis.shadowed is None else vis.shadowed[keep_c])
         diag['left_view'] = len(keep_c) - int(np.count_nonzero(keep_c))
-    hold = _hold(pred, vis, cfg)
 
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)
@@ -326,7 +325,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     new_filter, estimates, fdiag = update_state(
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
         visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d,
-        clutter_log_density=clutter, hold=hold)
+        clutter_log_density=clutter, shadowed=vis.shadowed)
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
     if fdiag.unexplained:
@@ -344,33 +343,6 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
                         error, 0.0)
     result.processing_time = time.perf_counter() - t0
     return new_state, result
-
-
-def _hold(pred: FilterState, vis, cfg: TrackerConfig):
-    """
-    Components a miss should not wear down (``update_state``'s ``hold``): those of a
-    confirmed label whose own extent lies wholly in shadow (``detection.hold_hidden``);
-    None if there is none.
-
-    Notes
-    -----
-    Such a component's p_D comes from its interval widened by the position uncertainty,
-    which reaches past the shadow as a hidden track coasts: a miss there is the
-    prediction's spread, not a sign that the object is gone, and counting it scan after
-    scan retired tracks the scan-shadow model is there to keep (a crowd's walkers). A
-    label not yet confirmed still fades so: a spurious track beside a person would
-    otherwise live on in its shadow. ``update_state`` holds only where no return lies on
-    the component's predicted outline, so an object coming out of the shadow there is
-    updated as before.
-    """
-    if not cfg.detection.hold_hidden or vis.hidden is None:
-        return None
-    hidden = vis.hidden
-    if not np.logical_or.reduce(hidden) or not len(pred.reported):
-        return None
-    confirmed = pred.reported[pred.confirmed_rows(cfg.extraction)]
-    hold = hidden & find_sorted(confirmed, pred.mixture.label)[1]
-    return hold if np.logical_or.reduce(hold) else None
 
 
 __all__ = ['PipelineState', 'StepResult', 'step', 'held', 'reset', 'EVENTS', 'ScanPoints']

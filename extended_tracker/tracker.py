@@ -163,7 +163,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                  visibility: np.ndarray | None = None,
                  centroid_offset: np.ndarray | None = None, pair_p_d=None,
                  clutter_log_density: np.ndarray | None = None,
-                 hold: np.ndarray | None = None):
+                 shadowed: np.ndarray | None = None):
     """
     Multi-object update of a predicted state with one scan's detections.
 
@@ -192,10 +192,11 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     clutter_log_density : (m,) array, optional
         ``log c(z)`` of each detection, the clutter spatial density there (1/m^2); uniform
         over ``clutter_area`` if omitted.
-    hold : (n,) bool array, optional
-        Components whose missed-detection factor takes p_D 0 unless a cell of theirs lies
-        on their predicted outline (:func:`_held_p_d`): a confirmed track wholly in shadow
-        (``pipeline._hold``).
+    shadowed : (n,) bool array, optional
+        Components whose own extent lies wholly in shadow (the scan-shadow model's plain
+        interval). With ``detection.hold_hidden``, those of confirmed labels take p_D 0 in
+        their missed-detection factor unless a cell lies on their predicted outline
+        (:func:`_held_p_d`).
 
     Returns
     -------
@@ -267,8 +268,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         pair_rows = keep.nonzero()[0]
         comp, cell, p_d_pair, pair_lik = comp[keep], cell[keep], p_d_pair[keep], pair_lik[keep]
     diag.pairs = len(comp)
-    if hold is not None:
-        p_d, diag.held = _held_p_d(mix, p_d, hold, comp, stats.mean[cell], R)
+    if shadowed is not None and cfg.detection.hold_hidden:
+        p_d, diag.held = _held_p_d(state, cfg, p_d, shadowed, comp, cell, stats.mean, R)
     log_pd0 = _log_constant(cfg.detection.p_d0)
 
     log_g = neg_inf((n_comp + 1, n_cells))
@@ -371,13 +372,22 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 HOLD_OUTLINE = 1.0    # squared distance within which a cell is on a held component's outline
 
 
-def _held_p_d(mix: Mixture, p_d: np.ndarray, hold: np.ndarray, comp: np.ndarray,
-              cell_mean: np.ndarray, R: np.ndarray):
+def _held_p_d(state: FilterState, cfg: TrackerConfig, p_d: np.ndarray, shadowed: np.ndarray,
+              comp: np.ndarray, cell: np.ndarray, cell_mean: np.ndarray, R: np.ndarray):
     """
-    ``p_d`` with 0 for the ``hold`` components that no cell lies on, and how many those
-    are.
+    ``p_d`` with 0 for the components held from a miss, and how many those are: the
+    ``shadowed`` ones of confirmed labels that no cell lies on.
 
-    A cell lies on a component when it is one of its pairs (``comp``, centroids
+    Notes
+    -----
+    A component wholly in shadow gets its p_D from its interval widened by the position
+    uncertainty, which reaches past the shadow as a hidden track coasts: a miss there is
+    the prediction's spread, not a sign that the object is gone, and counting it scan
+    after scan retired tracks the scan-shadow model is there to keep (a crowd's walkers).
+    A label not yet confirmed still fades so: a spurious track beside a person would
+    otherwise live on in its shadow.
+
+    A cell lies on a component when it is one of its pairs (``comp``, ``cell``; centroids
     ``cell_mean``) and its centroid is within the component's predicted outline, the
     expected extent grown by the position covariance and the sensor noise (squared
     distance ``HOLD_OUTLINE``). There the object may be in view after all, as when a
@@ -387,11 +397,15 @@ def _held_p_d(mix: Mixture, p_d: np.ndarray, hold: np.ndarray, comp: np.ndarray,
     the outline, is most often the occluder in front of a hidden object, and holds
     nothing back.
     """
-    held = np.asarray(hold, dtype=bool).copy()
+    if not np.logical_or.reduce(shadowed) or not len(state.reported):
+        return p_d, 0
+    mix = state.mixture
+    confirmed = state.reported[state.confirmed_rows(cfg.extraction)]
+    held = shadowed & find_sorted(confirmed, mix.label)[1]
     rows = held[comp].nonzero()[0]                     # the held components' pairs
     if len(rows):
         c = comp[rows]
-        e = cell_mean[rows] - mix.m[c, :2]
+        e = cell_mean[cell[rows]] - mix.m[c, :2]
         S = mix.expected_extent(c) + mix.P[c, :2, :2] + R
         held[c[einsum('ki,kij,kj->k', e, inv2(S), e) <= HOLD_OUTLINE]] = False
     return np.where(held, 0.0, p_d), int(np.count_nonzero(held))

@@ -12,9 +12,9 @@ import pytest
 from extended_tracker.config import from_dict
 from extended_tracker.ggiw import cell_stats, gate_pairs, IW_OFFSET, Mixture
 from extended_tracker.memo import evolve
-from extended_tracker.pipeline import _hold, PipelineState, step
+from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.scan import scan_to_points
-from extended_tracker.sensing.shadow import detection_model, Visibility
+from extended_tracker.sensing.shadow import detection_model
 from extended_tracker.sim.laser import LaserSpec, occlusion_scene, Scene, SimObject, simulate
 from extended_tracker.state import FilterState
 from extended_tracker.tracker import (filter_step, gate_threshold, predict_state,
@@ -467,7 +467,7 @@ def two_tracks(cfg, scans=12, seed=3):
 @pytest.mark.parametrize('returns, held', [(None, True), ((0.5, 0.0), True), ((0.0, 0.0), False)])
 def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(returns, held):
     """
-    ``update_state``'s ``hold``, for a second tracked object (10 m from the first) that
+    ``update_state``'s hold of hidden components, for a second tracked object (10 m from the first) that
     has no returns, returns 0.5 m beside its predicted centre (in its gate, off its
     outline: an occluder's edge) or returns on it. Oracle: the same update with p_D 0
     given to that object's component where it is held (in the missed-detection factor;
@@ -490,7 +490,7 @@ def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(return
         assert far[comp].any()                                   # in the object's gate
     p_d = np.full(len(mix), 0.9)
     hold, _, diag = update_state(pred, pts, p_d, cfg, clutter_area=200.0,
-                                 hold=np.ones(len(mix), dtype=bool))
+                                 shadowed=np.ones(len(mix), dtype=bool))
     # the hold is in the missed-detection factor alone: the pairs keep their p_D
     oracle, _, _ = update_state(pred, pts, np.where(far & held, 0.0, p_d), cfg,
                                 clutter_area=200.0,
@@ -509,20 +509,33 @@ def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(return
 
 
 def test_only_confirmed_labels_wholly_in_shadow_are_held():
-    """``pipeline._hold``: a label reported but not yet confirmed (M of N) still fades,
-    so that a spurious track beside a person does not live on in its shadow; nothing is
-    held with ``detection.hold_hidden`` off or where nothing is wholly hidden."""
+    """
+    A label reported but not yet confirmed (M of N) still fades, so that a spurious track
+    beside a person does not live on in its shadow; nothing is held with
+    ``detection.hold_hidden`` off or where nothing is wholly hidden. Oracle: the update
+    with p_D 0 given to the held component alone (no returns: no pairs).
+    """
     cfg = from_dict({})
     mix = two_components((5.0, 0.0), (5.0, 2.0))
     mix = evolve(mix, label=np.array([4, 7]))
     pred = evolve(FilterState.initial(cfg), mixture=mix, reported=np.array([4, 7]),
                   reported_scans=np.array([5, 1]), reported_hits=np.array([5, 1]))
     assert pred.confirmed_rows(cfg.extraction).tolist() == [True, False]
-    vis = Visibility(np.zeros(2), np.zeros(2), None, hidden=np.array([True, True]))
-    assert _hold(pred, vis, cfg).tolist() == [True, False]
-    assert _hold(pred, evolve(vis, hidden=np.array([False, True])), cfg) is None
+    none, p_d = np.zeros((0, 2)), np.full(2, 0.9)
+
+    def update(config, shadowed, p=p_d):
+        new, _, diag = update_state(pred, none, p, config, clutter_area=200.0,
+                                    shadowed=shadowed)
+        return new.mixture.w, diag.held
+
+    w, held = update(cfg, np.array([True, True]))
+    assert held == 1
+    np.testing.assert_array_equal(w, update(cfg, None, np.array([0.0, 0.9]))[0])
+    assert update(cfg, np.array([False, True]))[1] == 0
     off = from_dict({'detection': {'hold_hidden': False}})
-    assert _hold(pred, vis, off) is None
+    w_off, held_off = update(off, np.array([True, True]))
+    assert held_off == 0
+    np.testing.assert_array_equal(w_off, update(cfg, None)[0])
 
 
 @pytest.mark.parametrize('hold', [True, False])

@@ -36,7 +36,7 @@ class Visibility:
     rate_scale: np.ndarray | None
     offset: np.ndarray | None = None
     outside: np.ndarray | None = None
-    hidden: np.ndarray | None = None       # the plain interval (extent alone) wholly shadowed
+    shadowed: np.ndarray | None = None     # the plain interval (extent alone) wholly shadowed
 
 
 def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
