@@ -112,7 +112,7 @@ class StepResult:
 # the filter's own counts, copied from its StepDiagnostics (detections are counted here)
 _FILTER_DIAG = tuple(f.name for f in fields(StepDiagnostics) if f.name != 'detections')
 _DIAG = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
-         'absorbed': 0, **dict.fromkeys(_FILTER_DIAG, 0),
+         'at_sensor': 0, 'absorbed': 0, **dict.fromkeys(_FILTER_DIAG, 0),
          'beams': 0, **{f'masked_{k}': 0 for k in INVALID_KINDS}}
 _MASKED_KEY = {k: f'masked_{k}' for k in INVALID_KINDS}
 
@@ -201,7 +201,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     ``result.diagnostics`` holds: ``beams``, ``masked_<kind>`` for each invalid-beam kind,
     ``detections`` (valid returns), ``background_dropped``, ``warmup`` (1 while the
     background warm-up runs), ``left_view`` (components dropped as out of the field of
-    view), ``absorbed`` (components dropped because the returns they stood on were just
+    view), ``at_sensor`` (components dropped because the sensor lay within their extent),
+    ``absorbed`` (components dropped because the returns they stood on were just
     learned as background), ``partitions``, ``cells``,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,
     ``capped_components``, ``oversized`` (components dropped as too large or too
@@ -306,16 +307,23 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
                           log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
             diag['absorbed'] = int(np.count_nonzero(on_bg))
     vis = detection_model(pred.mixture, sp, cfg)
-    if vis.outside is not None and np.logical_or.reduce(vis.outside):
+    if vis.outside is not None and np.logical_or.reduce(vis.outside | vis.at_sensor):
         # objects that left the field of view or range can never be seen again here:
-        # drop them rather than let them coast forever with p_D = 0
-        keep_c = ~vis.outside
-        pred = evolve(pred, mixture=pred.mixture.take(keep_c))
+        # dropped rather than left to coast forever with p_D = 0. So are components the
+        # sensor would stand in, made of clutter around it: not objects, so their weight
+        # leaves the cardinality too (as the absorbed ones' does)
+        keep_c = ~(vis.outside | vis.at_sensor)
+        at_sensor = vis.at_sensor & ~vis.outside
+        diag['left_view'] = int(np.count_nonzero(vis.outside))
+        diag['at_sensor'] = int(np.count_nonzero(at_sensor))
+        log_card = pred.log_card
+        if diag['at_sensor']:
+            log_card = thin_cardinality(log_card, float(pred.mixture.w[at_sensor].sum()))
+        pred = evolve(pred, mixture=pred.mixture.take(keep_c), log_card=log_card)
         vis = evolve(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
                      rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
                      offset=vis.offset[keep_c], outside=vis.outside[keep_c],
-                     shadowed=None if vis.shadowed is None else vis.shadowed[keep_c])
-        diag['left_view'] = len(keep_c) - int(np.count_nonzero(keep_c))
+                     shadowed=vis.shadowed[keep_c], at_sensor=vis.at_sensor[keep_c])
 
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)

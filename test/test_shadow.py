@@ -573,3 +573,55 @@ def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
     else:
         assert min(gaps) >= 5, gaps
         assert held == [0] * 6, held
+
+
+@pytest.mark.parametrize('x, y, inside', [(-0.2, 0.0, True), (0.2, 0.1, True), (0.0, 0.0, True),
+                                          (0.3, 0.0, False), (0.0, 0.26, False),
+                                          (-0.3, 0.1, False)])
+def test_the_sensor_within_an_extent_marks_the_component(x, y, inside):
+    """
+    A component whose outline holds the sensor (E[X] = 0.25^2 I here: a circle of radius
+    0.25 m about its centre) is marked ``at_sensor``, and no other. Oracle: the distance by hand. The marked ones behind the
+    sensor show why they are dropped: their interval is taken as half a turn about a bearing
+    outside the 180 deg sector, so p_D is 0 and nothing could ever refute them.
+    """
+    vis = detection_model(component_at(x, y, semi=0.25), scan_of([]), CFG)
+    assert bool(vis.at_sensor[0]) == (np.hypot(x, y) < 0.25)
+    assert bool(vis.at_sensor[0]) == inside
+    if x < 0 and inside:
+        assert vis.p_d[0] == 0.0 and not vis.outside[0]
+
+
+def pipeline_with(mix, cfg, log_card):
+    state = PipelineState.initial(cfg)
+    filt = evolve(state.filter, mixture=mix, log_card=log_card)
+    return evolve(state, filter=filt)
+
+
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_track_the_sensor_would_stand_in_is_dropped_with_its_weight(mode):
+    """
+    Clutter scattered around the sensor made tracks there (the suite's ``clutter`` scene)
+    that coasted with p_D 0 behind a 180 deg scanner. The pipeline drops a component whose
+    extent holds the sensor, counts it (``at_sensor``) and takes its weight from the
+    cardinality. Oracle: the same scan from a state that never had it, its cardinality
+    one object less, gives the same posterior, to within what one step's survival does
+    (the drop comes after the prediction, which thins the cardinality by p_S first).
+    """
+    cfg = from_dict({'background': {'enabled': False}, 'model': {'mode': mode}})
+    far = component_at(5.0, 0.0)
+    both = Mixture.concat([far, evolve(component_at(-0.1, 0.05), label=np.array([2]))])
+    card2, card1 = np.full(cfg.model.n_max + 1, -np.inf), np.full(cfg.model.n_max + 1, -np.inf)
+    card2[2] = card1[1] = 0.0
+    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
+                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
+    state, with_it = step(pipeline_with(both, cfg, card2), scan, cfg)
+    oracle, without = step(pipeline_with(far, cfg, card1), scan, cfg)
+    assert with_it.diagnostics['at_sensor'] == 1 and without.diagnostics['at_sensor'] == 0
+    assert with_it.diagnostics['left_view'] == 0
+    got, want = state.filter.mixture, oracle.filter.mixture
+    assert got.label.tolist() == want.label.tolist()
+    np.testing.assert_allclose(got.w, want.w, atol=1e-3)
+    np.testing.assert_allclose(got.m, want.m, atol=1e-6)
+    assert with_it.expected_count == pytest.approx(without.expected_count, abs=1e-3)
+    assert with_it.expected_count < 1.1                # kept, it would be about 2

@@ -8,9 +8,10 @@ Section 6 of ``docs/ggiw-cphd.md``. For each predicted component the ellipse
 uncertainty across the line of sight) and has a near range ``r_near``. A beam in the
 interval is *shadowed* when its return is clearly nearer than ``r_near``; beams with no
 return, or a return at or beyond the object, leave it visible. ``p_D = p_D0 * visible``
-and ``p_D = 0`` outside the field of view or beyond ``range_max``. The estimate-shadow
-mode (Granström & Orguner, IEEE TSP 60(11), 2012) replaces the scan's returns by the near
-ranges of the other confident estimates.
+and ``p_D = 0`` outside the field of view or beyond ``range_max``; a component whose
+extent holds the sensor is marked ``at_sensor`` (no object can be there). The
+estimate-shadow mode (Granström & Orguner, IEEE TSP 60(11), 2012) replaces the scan's
+returns by the near ranges of the other confident estimates.
 
 """
 
@@ -21,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..ggiw import einsum, Mixture
+from ..ggiw import einsum, inv2, Mixture, quad_form2
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
@@ -37,6 +38,7 @@ class Visibility:
     offset: np.ndarray | None = None
     outside: np.ndarray | None = None
     shadowed: np.ndarray | None = None     # the plain interval (extent alone) wholly shadowed
+    at_sensor: np.ndarray | None = None    # the sensor within the extent: not an object
 
 
 def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
@@ -261,9 +263,15 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     if not scan.full_turn:
         outside |= ((bearing + half < scan.angle_lo - step)
                     | (bearing - half > scan.angle_hi + step))
+    # the sensor inside the outline (the ellipse of E[X]: squared Mahalanobis distance
+    # below 1): no object can be there. Its interval is taken as half a turn about its
+    # bearing, which may point out of the field of view (p_D down to 0): clutter around
+    # the sensor kept such tracks alive
+    at_sensor = quad_form2(mix.m[:, :2], inv2(extent)) < 1.0
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
-    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0)
+    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0,
+                      at_sensor)
 
 
 def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndarray:
