@@ -201,7 +201,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     ``result.diagnostics`` holds: ``beams``, ``masked_<kind>`` for each invalid-beam kind,
     ``detections`` (valid returns), ``background_dropped``, ``warmup`` (1 while the
     background warm-up runs), ``left_view`` (components dropped as out of the field of
-    view), ``at_sensor`` (components dropped because the sensor lay within their extent),
+    view), ``at_sensor`` (components dropped because the sensor lay within their outline),
     ``absorbed`` (components dropped because the returns they stood on were just
     learned as background), ``partitions``, ``cells``,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,

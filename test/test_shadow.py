@@ -467,12 +467,12 @@ def two_tracks(cfg, scans=12, seed=3):
 @pytest.mark.parametrize('returns, held', [(None, True), ((0.5, 0.0), True), ((0.0, 0.0), False)])
 def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(returns, held):
     """
-    ``update_state``'s hold of hidden components, for a second tracked object (10 m from the first) that
-    has no returns, returns 0.5 m beside its predicted centre (in its gate, off its
-    outline: an occluder's edge) or returns on it. Oracle: the same update with p_D 0
-    given to that object's component where it is held (in the missed-detection factor;
-    its pairs keep theirs), as it was where it is not; every field of the posterior and
-    the cardinality agree. Held, the object keeps its weight
+    ``update_state``'s hold of hidden components, for a second tracked object (10 m from
+    the first) that has no returns, returns 0.5 m beside its predicted centre (in its
+    gate, off its outline: an occluder's edge) or returns on it. Oracle: the same update
+    with p_D 0 given to that object's component where it is held (in the
+    missed-detection factor; its pairs keep theirs), as it was where it is not; every
+    field of the posterior and the cardinality agree. Held, the object keeps its weight
     (0.94 with no returns), which one plain miss at p_D 0.9 takes to about half (0.48).
     """
     cfg = from_dict({})
@@ -578,12 +578,13 @@ def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
 @pytest.mark.parametrize('x, y, inside', [(-0.2, 0.0, True), (0.2, 0.1, True), (0.0, 0.0, True),
                                           (0.3, 0.0, False), (0.0, 0.26, False),
                                           (-0.3, 0.1, False)])
-def test_the_sensor_within_an_extent_marks_the_component(x, y, inside):
+def test_the_sensor_within_an_outline_marks_the_component(x, y, inside):
     """
     A component whose outline holds the sensor (E[X] = 0.25^2 I here: a circle of radius
-    0.25 m about its centre) is marked ``at_sensor``, and no other. Oracle: the distance by hand. The marked ones behind the
-    sensor show why they are dropped: their interval is taken as half a turn about a bearing
-    outside the 180 deg sector, so p_D is 0 and nothing could ever refute them.
+    0.25 m about its centre) is marked ``at_sensor``, and no other. Oracle: the distance
+    by hand. The marked ones behind the sensor show why they are dropped: their interval
+    is taken as half a turn about a bearing outside the 180 deg sector, so p_D is 0 and
+    nothing could ever refute them.
     """
     vis = detection_model(component_at(x, y, semi=0.25), scan_of([]), CFG)
     assert bool(vis.at_sensor[0]) == (np.hypot(x, y) < 0.25)
@@ -603,7 +604,7 @@ def test_a_track_the_sensor_would_stand_in_is_dropped_with_its_weight(mode):
     """
     Clutter scattered around the sensor made tracks there (the suite's ``clutter`` scene)
     that coasted with p_D 0 behind a 180 deg scanner. The pipeline drops a component whose
-    extent holds the sensor, counts it (``at_sensor``) and takes its weight from the
+    outline holds the sensor, counts it (``at_sensor``) and takes its weight from the
     cardinality. Oracle: the same scan from a state that never had it, its cardinality
     one object less, gives the same posterior, to within what one step's survival does
     (the drop comes after the prediction, which thins the cardinality by p_S first).

@@ -9,7 +9,7 @@ uncertainty across the line of sight) and has a near range ``r_near``. A beam in
 interval is *shadowed* when its return is clearly nearer than ``r_near``; beams with no
 return, or a return at or beyond the object, leave it visible. ``p_D = p_D0 * visible``
 and ``p_D = 0`` outside the field of view or beyond ``range_max``; a component whose
-extent holds the sensor is marked ``at_sensor`` (no object can be there). The
+outline holds the sensor is marked ``at_sensor`` (no object can be there). The
 estimate-shadow mode (Granström & Orguner, IEEE TSP 60(11), 2012) replaces the scan's
 returns by the near ranges of the other confident estimates.
 
@@ -38,7 +38,7 @@ class Visibility:
     offset: np.ndarray | None = None
     outside: np.ndarray | None = None
     shadowed: np.ndarray | None = None     # the plain interval (extent alone) wholly shadowed
-    at_sensor: np.ndarray | None = None    # the sensor within the extent: not an object
+    at_sensor: np.ndarray | None = None    # the sensor within the outline: not an object
 
 
 def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
