@@ -579,6 +579,27 @@ def thin_cardinality(log_card: np.ndarray, removed: float) -> np.ndarray:
         return np.log(p)
 
 
+def add_cardinality(log_card: np.ndarray, added: float) -> np.ndarray:
+    """
+    The cardinality pmf after ``added`` expected objects are put in, the converse of
+    :func:`thin_cardinality`: whole objects one at a time, the last with the fractional
+    remainder as its probability (``p'(n) = (1 - f) p(n) + f p(n - 1)``, ``p'(N_max)``
+    also keeping ``f p(N_max)``: the pmf ends there). Below ``N_max`` the mean grows by
+    ``added`` exactly.
+    """
+    p = np.exp(log_card - log_card.max())
+    p /= p.sum()
+    while added > 1e-12:
+        f = min(added, 1.0)
+        q = (1.0 - f) * p
+        q[1:] += f * p[:-1]
+        q[-1] += f * p[-1]                         # no room beyond N_max
+        p = q
+        added -= f
+    with np.errstate(divide='ignore'):
+        return np.log(p)
+
+
 def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
     """
     A cardinality pmf (log) carried over to ``0..n_max`` when ``N_max`` changes while the
