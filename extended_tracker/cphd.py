@@ -566,17 +566,7 @@ def thin_cardinality(log_card: np.ndarray, removed: float) -> np.ndarray:
     Each step is a convex combination of neighbouring entries, so it runs on the pmf
     scaled by its largest entry: nothing that matters underflows.
     """
-    p = np.exp(log_card - log_card.max())
-    p /= p.sum()
-    while removed > 1e-12:
-        f = min(removed, 1.0)
-        q = (1.0 - f) * p
-        q[:-1] += f * p[1:]
-        q[0] += f * p[0]                           # nothing to take from none
-        p = q
-        removed -= f
-    with np.errstate(divide='ignore'):
-        return np.log(p)
+    return _shift_cardinality(log_card, removed, down=True)
 
 
 def add_cardinality(log_card: np.ndarray, added: float) -> np.ndarray:
@@ -587,15 +577,26 @@ def add_cardinality(log_card: np.ndarray, added: float) -> np.ndarray:
     also keeping ``f p(N_max)``: the pmf ends there). Below ``N_max`` the mean grows by
     ``added`` exactly.
     """
+    return _shift_cardinality(log_card, added, down=False)
+
+
+def _shift_cardinality(log_card: np.ndarray, count: float, down: bool) -> np.ndarray:
+    """``count`` expected objects taken from (``down``) or put into a cardinality pmf,
+    one whole object at a time and the fractional rest last; the end entry keeps what
+    would leave the pmf."""
     p = np.exp(log_card - log_card.max())
     p /= p.sum()
-    while added > 1e-12:
-        f = min(added, 1.0)
+    while count > 1e-12:
+        f = min(count, 1.0)
         q = (1.0 - f) * p
-        q[1:] += f * p[:-1]
-        q[-1] += f * p[-1]                         # no room beyond N_max
+        if down:
+            q[:-1] += f * p[1:]
+            q[0] += f * p[0]                       # nothing to take from none
+        else:
+            q[1:] += f * p[:-1]
+            q[-1] += f * p[-1]                     # no room beyond N_max
         p = q
-        added -= f
+        count -= f
     with np.errstate(divide='ignore'):
         return np.log(p)
 
