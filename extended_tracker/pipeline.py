@@ -307,23 +307,20 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
                           log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
             diag['absorbed'] = int(np.count_nonzero(on_bg))
     vis = detection_model(pred.mixture, sp, cfg)
-    if vis.outside is not None and np.logical_or.reduce(vis.outside | vis.at_sensor):
+    drop = None if vis.outside is None else vis.outside | vis.at_sensor
+    if drop is not None and np.logical_or.reduce(drop):
         # objects that left the field of view or range can never be seen again here:
         # dropped rather than left to coast forever with p_D = 0. So are components the
         # sensor would stand in, made of clutter around it: not objects, so their weight
         # leaves the cardinality too (as the absorbed ones' does)
-        keep_c = ~(vis.outside | vis.at_sensor)
         at_sensor = vis.at_sensor & ~vis.outside
         diag['left_view'] = int(np.count_nonzero(vis.outside))
         diag['at_sensor'] = int(np.count_nonzero(at_sensor))
         log_card = pred.log_card
         if diag['at_sensor']:
             log_card = thin_cardinality(log_card, float(pred.mixture.w[at_sensor].sum()))
-        pred = evolve(pred, mixture=pred.mixture.take(keep_c), log_card=log_card)
-        vis = evolve(vis, p_d=vis.p_d[keep_c], visible=vis.visible[keep_c],
-                     rate_scale=None if vis.rate_scale is None else vis.rate_scale[keep_c],
-                     offset=vis.offset[keep_c], outside=vis.outside[keep_c],
-                     shadowed=vis.shadowed[keep_c], at_sensor=vis.at_sensor[keep_c])
+        pred = evolve(pred, mixture=pred.mixture.take(~drop), log_card=log_card)
+        vis = vis.take(~drop)
 
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)

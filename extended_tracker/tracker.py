@@ -304,17 +304,17 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
             apart = _out_of_sight(mix, held, comp)
             if apart is not None:
                 rows, w_apart = apart
+                total_apart = float(np.add.reduce(w_apart))
                 with np.errstate(divide='ignore'):
                     log_w[rows] = np.log(np.maximum(mix.w[rows] - w_apart, 0.0))
-                log_card = thin_cardinality(log_card, float(np.add.reduce(w_apart)))
+                log_card = thin_cardinality(log_card, total_apart)
         out = cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
                           log_card, clutter_pmf, lonely)
         if apart is not None:
             log_w_missed = out.log_w_missed.copy()
             log_w_missed[rows] = np.log(np.exp(log_w_missed[rows]) + w_apart)
             out = evolve(out, log_w_missed=log_w_missed,
-                         log_card=add_cardinality(out.log_card,
-                                                  float(np.add.reduce(w_apart))))
+                         log_card=add_cardinality(out.log_card, total_apart))
     else:
         out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, pset.partitions,
                          mc.clutter_rate, mc.n_max, lonely)

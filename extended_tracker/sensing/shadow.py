@@ -17,7 +17,7 @@ returns by the near ranges of the other confident estimates.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import math
 
 import numpy as np
@@ -39,6 +39,11 @@ class Visibility:
     outside: np.ndarray | None = None
     shadowed: np.ndarray | None = None     # the plain interval (extent alone) wholly shadowed
     at_sensor: np.ndarray | None = None    # the sensor within the outline: not an object
+
+    def take(self, rows) -> 'Visibility':
+        """The model of the components ``rows`` (an index or mask), every field alike."""
+        values = (getattr(self, f.name) for f in fields(self))
+        return Visibility(*(None if a is None else a[rows] for a in values))
 
 
 def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
