@@ -232,6 +232,14 @@ def test_constant_model_ignores_the_scan():
     assert detection_model(component_at(5.0, 0.0), sp, cfg).p_d[0] == 0.8
 
 
+def label_near(est, centre, radius=0.8):
+    """The label of the estimate nearest ``centre`` if within ``radius`` (m), else None."""
+    if not len(est):
+        return None
+    d = np.linalg.norm(est.m[:, :2] - centre, axis=1)
+    return int(est.label[np.argmin(d)]) if d.min() < radius else None
+
+
 def track_continuity(model, seed, background=True):
     cfg = from_dict({'detection': {'model': model}, 'background': {'enabled': background}})
     state = PipelineState.initial(cfg)
@@ -239,13 +247,7 @@ def track_continuity(model, seed, background=True):
     for scan, truth in simulate(occlusion_scene(), 10.0, seed=seed):
         state, res = step(state, scan, cfg)
         walker = next(t for t in truth if t.id == 1)
-        est = res.estimates
-        label = None
-        if len(est):
-            d = np.linalg.norm(est.m[:, :2] - walker.centre, axis=1)
-            if d.min() < 0.8:
-                label = int(est.label[np.argmin(d)])
-        ids.append(label)
+        ids.append(label_near(res.estimates, walker.centre))
     hidden = sum(1 for scan, truth in simulate(occlusion_scene(), 10.0, seed=seed)
                  if next(t for t in truth if t.id == 1).visible_beams == 0)
     labels = [x for x in ids[5:] if x is not None]
@@ -649,9 +651,7 @@ def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
             walker = truth[1]
             hidden += walker.visible_beams == 0
             n_held += res.diagnostics['held'] > 0
-            est = res.estimates
-            d = np.linalg.norm(est.m[:, :2] - walker.centre, axis=1) if len(est) else []
-            ids.append(int(est.label[np.argmin(d)]) if len(d) and min(d) < 0.8 else None)
+            ids.append(label_near(res.estimates, walker.centre))
         assert hidden >= 30
         assert len({x for x in ids if x is not None}) == 1
         gaps.append(ids[3:].count(None))
@@ -734,11 +734,10 @@ def test_a_walker_passing_right_in_front_of_the_scanner_is_never_dropped(x):
                                                    4.0, seed=seed)):
             state, res = step(state, scan, cfg)
             dropped += res.diagnostics['at_sensor']
-            est = res.estimates
-            d = np.linalg.norm(est.m[:, :2] - truth[0].centre, axis=1)
             if k >= 3:
-                assert len(d) and d.min() < 0.5, (seed, k)
-                ids.append(int(est.label[d.argmin()]))
+                label = label_near(res.estimates, truth[0].centre, 0.5)
+                assert label is not None, (seed, k)
+                ids.append(label)
         assert len(set(ids)) == 1, (seed, ids)
         if x >= 0.4:
             assert dropped == 0, seed
