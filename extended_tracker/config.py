@@ -91,6 +91,10 @@ class PartitionConfig:
     max_sub_objects: int = _f(4, 'most objects sub-partitioning splits one cell into', '', 2,
                               20)
     prediction_partition: bool = _f(True, 'add a partition from the gates of confident tracks')
+    split_small: int = _f(2, 'a cell of the finest distance partition with 2 up to this many '
+                          'detections is also tried as lone returns, one partition each, so '
+                          'that returns closer than d_min can still be clutter (below 2: '
+                          'never)', 'detections', 0, 1000)
     gate_probability: float = _f(0.999, 'chi-square gate probability of (component, cell); 1: '
                                  'no gate', '', 0.5, 1.0, lo_open=True)
 
