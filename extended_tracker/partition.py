@@ -498,13 +498,22 @@ def _small_cell_splits(pset: PartitionSet, finest: np.ndarray, cfg) -> None:
     as two single returns, the update weighs an object there against two clutter returns
     (and a track may still take either return alone).
     """
-    m = len(finest)
-    counts = np.bincount(finest, minlength=m)
-    for lab in ((counts >= 2) & (counts <= cfg.split_small)).nonzero()[0].tolist():
-        split = finest.copy()
-        idx = (finest == lab).nonzero()[0]
-        split[idx] = m + idx                 # labels no other detection has
-        pset.add(split, cfg.max_partitions, cfg.max_cells)
+    counts = np.bincount(finest, minlength=len(finest))
+    small = (counts >= 2) & (counts <= cfg.split_small)
+    if not np.logical_or.reduce(small):
+        return
+    # the finest partition's cells once (the entries are shared, so a cell one variant
+    # adds is known to the next); each variant is them with one cell's returns alone at
+    # the end, the order PartitionSet.add would give that label array
+    base = [[g, pset._index.get(g.tobytes())] for g in _groups(finest)]
+    for k, (g, _) in enumerate(base):
+        if not small[g[0]]:                  # a cell's label is its smallest detection
+            continue
+        if len(pset.partitions) >= cfg.max_partitions:
+            pset.capped_partitions += 1
+            continue
+        alone = [[g[i:i + 1], pset._index.get(g[i:i + 1].tobytes())] for i in range(len(g))]
+        pset._commit(base[:k] + base[k + 1:] + alone, cfg.max_cells)
 
 
 def _gate_d2(z: np.ndarray, predicted) -> np.ndarray:

@@ -123,6 +123,43 @@ def test_nested_add_equals_one_add_per_partition(pts, d_min, span, max_parts, ma
     assert (a.capped_partitions, a.capped_cells) == (b.capped_partitions, b.capped_cells)
 
 
+@given(point_sets(max_n=60), st.floats(0.0, 0.5), st.integers(2, 4), st.integers(1, 12),
+       st.integers(1, 80), st.booleans())
+def test_small_cell_splits_equal_one_add_per_label_array(pts, d_min, split_small, max_parts,
+                                                        max_cells, nested_first):
+    """
+    The small cells' lone-return partitions (the finest partition's cells derived once)
+    give the same cells, partitions and cap counters as :meth:`PartitionSet.add` on each
+    variant's label array, the cell's returns relabelled past every other label; with
+    the distance partitions added first or not at all.
+    """
+    from types import SimpleNamespace
+    from extended_tracker.partition import _small_cell_splits, PartitionSet
+
+    dist, _ = distance_partitions(pts, d_min, d_min + 0.5, 40)
+    if not len(pts):
+        return
+    cfg = SimpleNamespace(split_small=split_small, max_partitions=max_parts,
+                          max_cells=max_cells)
+    sets = PartitionSet(), PartitionSet()
+    if nested_first:
+        for p in sets:
+            p.add_nested(dist, max_parts, max_cells)
+    finest = dist[0]
+    m = len(finest)
+    counts = np.bincount(finest, minlength=m)
+    for lab in ((counts >= 2) & (counts <= split_small)).nonzero()[0].tolist():
+        split = finest.copy()
+        idx = (finest == lab).nonzero()[0]
+        split[idx] = m + idx
+        sets[0].add(split, max_parts, max_cells)
+    _small_cell_splits(sets[1], finest, cfg)
+    a, b = sets
+    assert [c.tolist() for c in a.cells] == [c.tolist() for c in b.cells]
+    assert [p.tolist() for p in a.partitions] == [p.tolist() for p in b.partitions]
+    assert (a.capped_partitions, a.capped_cells) == (b.capped_partitions, b.capped_cells)
+
+
 @given(point_sets(max_n=25), st.floats(0.05, 1.5))
 def test_distance_partition_matches_definition(pts, d):
     """Threshold partition == connected components of 'closer than d' (checked by BFS)."""
