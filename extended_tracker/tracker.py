@@ -23,7 +23,7 @@ from .cphd import (
 )
 from .ggiw import (
     cell_stats, eig2, einsum, gate_covariance, gate_pairs, group_heads, inv2, IW_OFFSET,
-    log_miss_factor, Mixture, predict, update_pairs, weight_key,
+    log_miss_factor, Mixture, predict, quad_form2, update_pairs, weight_key,
 )
 from .identity import (
     group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
@@ -426,7 +426,7 @@ def _held_p_d(state: FilterState, cfg: TrackerConfig, p_d: np.ndarray, shadowed:
         c = comp[rows]
         e = cell_mean[cell[rows]] - mix.m[c, :2]
         S = mix.expected_extent(c) + mix.P[c, :2, :2] + R
-        held[c[einsum('ki,kij,kj->k', e, inv2(S), e) <= HOLD_OUTLINE]] = False
+        held[c[quad_form2(e, inv2(S)) <= HOLD_OUTLINE]] = False
     return np.where(held, 0.0, p_d), held
 
 
