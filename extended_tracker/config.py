@@ -74,6 +74,11 @@ class DetectionConfig:
     hold_hidden: bool = _f(True, 'a confirmed track whose own extent is wholly in shadow, '
                            'with no return on its predicted outline, is not worn down by '
                            'misses')
+    min_fill: float = _f(0.1, 'a component in view expecting fewer returns than this share '
+                         'of the beams its extent spans is not an object: it is dropped, '
+                         'and so is such a birth on returns no track explains (a laser '
+                         'returns on nearly every beam a solid object spans; 0: never)',
+                         'returns per beam', 0.0, 1.0)
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ from .ggiw import gate_covariance, gate_distance2, inv2
 from .memo import evolve
 from .sensing.background import BackgroundState, beams_near_tracks, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
-from .sensing.shadow import detection_model, pair_detection_probability
+from .sensing.shadow import detection_model, pair_detection_probability, sparse_births
 from .state import Estimates, FilterState, find_sorted, StepDiagnostics
 from .tracker import gate_threshold, predict_state, sensor_noise, update_state
 
@@ -112,7 +112,7 @@ class StepResult:
 # the filter's own counts, copied from its StepDiagnostics (detections are counted here)
 _FILTER_DIAG = tuple(f.name for f in fields(StepDiagnostics) if f.name != 'detections')
 _DIAG = {'detections': 0, 'background_dropped': 0, 'warmup': 0, 'left_view': 0,
-         'at_sensor': 0, 'absorbed': 0, **dict.fromkeys(_FILTER_DIAG, 0),
+         'at_sensor': 0, 'sparse': 0, 'absorbed': 0, **dict.fromkeys(_FILTER_DIAG, 0),
          'beams': 0, **{f'masked_{k}': 0 for k in INVALID_KINDS}}
 _MASKED_KEY = {k: f'masked_{k}' for k in INVALID_KINDS}
 
@@ -202,6 +202,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     ``detections`` (valid returns), ``background_dropped``, ``warmup`` (1 while the
     background warm-up runs), ``left_view`` (components dropped as out of the field of
     view), ``at_sensor`` (components dropped because the sensor lay within their outline),
+    ``sparse`` (components in full view dropped because they expected fewer returns than
+    ``detection.min_fill`` of the beams they span),
     ``absorbed`` (components dropped because the returns they stood on were just
     learned as background), ``partitions``, ``cells``,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,
@@ -307,30 +309,37 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
                           log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
             diag['absorbed'] = int(np.count_nonzero(on_bg))
     vis = detection_model(pred.mixture, sp, cfg)
-    drop = None if vis.outside is None else vis.outside | vis.at_sensor
+    drop = None if vis.outside is None else vis.outside | vis.at_sensor | vis.sparse
     if drop is not None and np.logical_or.reduce(drop):
         # objects that left the field of view or range can never be seen again here:
         # dropped rather than left to coast forever with p_D = 0. So are components the
-        # sensor would stand in, made of clutter around it: not objects, so their weight
-        # leaves the cardinality too (as the absorbed ones' does)
+        # sensor would stand in, and those in full view that expect far fewer returns than
+        # the beams they span, made of clutter: not objects, so their weight leaves the
+        # cardinality too (as the absorbed ones' does)
         at_sensor = vis.at_sensor & ~vis.outside
+        sparse = vis.sparse & ~vis.outside & ~vis.at_sensor
         diag['left_view'] = int(np.count_nonzero(vis.outside))
         diag['at_sensor'] = int(np.count_nonzero(at_sensor))
+        diag['sparse'] = int(np.count_nonzero(sparse))
         log_card = pred.log_card
-        if diag['at_sensor']:
-            log_card = thin_cardinality(log_card, float(pred.mixture.w[at_sensor].sum()))
+        if diag['at_sensor'] or diag['sparse']:
+            not_objects = at_sensor | sparse
+            log_card = thin_cardinality(log_card, float(pred.mixture.w[not_objects].sum()))
         pred = evolve(pred, mixture=pred.mixture.take(~drop), log_card=log_card)
         vis = vis.take(~drop)
 
     def pair_p_d(mix, comp, m_new, P_new):
         return pair_detection_probability(mix, comp, m_new, P_new, sp, cfg, vis.p_d)
 
+    def no_birth(births):
+        return sparse_births(births, sp, cfg)
+
     clutter = (sp.beam_clutter_log_density(points) if cfg.model.clutter_density == 'beam'
                else None)
     new_filter, estimates, fdiag = update_state(
         pred, points, vis.p_d, cfg, rate_scale=vis.rate_scale, clutter_area=sp.area,
         visibility=vis.visible, centroid_offset=vis.offset, pair_p_d=pair_p_d,
-        clutter_log_density=clutter, shadowed=vis.shadowed)
+        clutter_log_density=clutter, shadowed=vis.shadowed, no_birth=no_birth)
     for k in _FILTER_DIAG:
         diag[k] = getattr(fdiag, k)
     if fdiag.unexplained:

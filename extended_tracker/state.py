@@ -203,6 +203,7 @@ class StepDiagnostics:
     grouped: int = 0
     unexplained: int = 0
     held: int = 0
+    sparse_births: int = 0
 
 
 def find_sorted(ascending: np.ndarray, a: np.ndarray):

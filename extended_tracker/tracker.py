@@ -164,7 +164,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                  visibility: np.ndarray | None = None,
                  centroid_offset: np.ndarray | None = None, pair_p_d=None,
                  clutter_log_density: np.ndarray | None = None,
-                 shadowed: np.ndarray | None = None):
+                 shadowed: np.ndarray | None = None, no_birth=None):
     """
     Multi-object update of a predicted state with one scan's detections.
 
@@ -199,6 +199,13 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         their missed-detection factor unless a cell lies on their predicted outline
         (:func:`_held_p_d`); in CPHD mode one object's worth of a label so held and
         wholly out of sight is kept out of the update (:func:`_out_of_sight`).
+    no_birth : callable, optional
+        ``no_birth(births) -> (j,) bool``: which of the birth hypotheses ``births`` (the
+        birth posteriors of the cells of at least ``birth.min_points`` returns that no
+        existing component is paired with, a :class:`ggiw.PairUpdate`) are no object the
+        sensor could see (the scan-shadow model's :func:`sensing.shadow.sparse_births`).
+        Those births take p_D 0; a cell of several returns left with no explanation is
+        then clutter return by return, as for ``birth.min_points``.
 
     Returns
     -------
@@ -278,10 +285,22 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
 
     log_g = neg_inf((n_comp + 1, n_cells))
     log_g[comp, cell] = np.log(p_d_pair) + pair_lik
-    log_g[n_comp, :] = np.where(stats.n >= cfg.birth.min_points, log_pd0 + birth_lik,
-                                NEG_INF)
+    born_ok = stats.n >= cfg.birth.min_points
+    if no_birth is not None:
+        # births the sensor could not have seen, on cells no component is paired with:
+        # beside a track a few returns are as likely its own (a walker's leg), and
+        # refusing the birth there changed which of a walker's legs kept a label on the
+        # recordings
+        free = born_ok.copy()
+        free[cell] = False
+        if np.logical_or.reduce(free):
+            rows = free.nonzero()[0]
+            refused = rows[no_birth(upd_all.take(k + rows))]
+            diag.sparse_births = len(refused)
+            born_ok[refused] = False
+    log_g[n_comp, :] = np.where(born_ok, log_pd0 + birth_lik, NEG_INF)
     lonely = None
-    if cfg.birth.min_points > 2:
+    if cfg.birth.min_points > 2 or diag.sparse_births:
         # a cell of several returns too few to be born from, that no object explains, is
         # clutter return by return (clutter alone would make every partition holding it
         # impossible, and the cardinality NaN from then on)

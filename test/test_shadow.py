@@ -12,11 +12,11 @@ import pytest
 
 from extended_tracker.config import from_dict
 from extended_tracker.cphd import add_cardinality, thin_cardinality
-from extended_tracker.ggiw import cell_stats, gate_pairs, IW_OFFSET, Mixture
+from extended_tracker.ggiw import cell_stats, gate_pairs, IW_OFFSET, Mixture, PairUpdate
 from extended_tracker.memo import evolve
 from extended_tracker.pipeline import PipelineState, step
-from extended_tracker.sensing.scan import scan_to_points
-from extended_tracker.sensing.shadow import detection_model
+from extended_tracker.sensing.scan import Header, ScanData, scan_to_points, Stamp
+from extended_tracker.sensing.shadow import detection_model, sparse_births
 from extended_tracker.sim.laser import LaserSpec, occlusion_scene, Scene, SimObject, simulate
 from extended_tracker.state import FilterState
 from extended_tracker.tracker import (filter_step, gate_threshold, predict_state,
@@ -761,3 +761,141 @@ def test_keeping_labels_out_of_sight_apart_keeps_the_crowds_hidden_walkers(monke
     assert apart.hidden_kept >= scaled.hidden_kept + 20, (apart.hidden_kept,
                                                           scaled.hidden_kept)
     assert apart.gospa_mean < scaled.gospa_mean - 0.1
+
+
+def with_rate(mix, rate):
+    """``mix`` with every Gamma mean set to ``rate`` (shape kept)."""
+    return evolve(mix, beta=mix.alpha / rate)
+
+
+@pytest.mark.parametrize('r, rate', [(1.0, 2.0), (1.0, 10.0), (0.5, 8.0), (0.5, 20.0),
+                                     (5.0, 1.5), (3.0, 2.5)])
+def test_a_component_expecting_far_fewer_returns_than_beams_it_spans_is_sparse(r, rate):
+    """
+    In full view, a component of semi-axis 0.25 m at range ``r`` spans ``2 asin(0.25 / r)``
+    over the beam spacing beams; it is marked ``sparse`` when it expects fewer returns than
+    ``detection.min_fill`` (0.1) of those, and not otherwise. Oracle: the beams counted by
+    hand from the scan's spacing.
+    """
+    sp = scan_of([])
+    beams = 2.0 * np.arcsin(0.25 / r) / abs(sp.angle_step)
+    vis = detection_model(with_rate(component_at(r, 0.0), rate), sp, CFG)
+    assert bool(vis.sparse[0]) == (rate < 0.1 * beams)
+    assert bool(vis.sparse[0]) == ((r, rate) in [(1.0, 2.0), (0.5, 8.0)])
+    off = from_dict({'detection': {'p_d0': 0.9, 'max_widen': 0.0, 'min_fill': 0.0}})
+    assert not detection_model(with_rate(component_at(r, 0.0), rate), sp, off).sparse[0]
+
+
+def test_a_component_partly_hidden_is_never_sparse():
+    """Of an object partly hidden the scan says nothing about its rate: a component 1 m
+    away expecting 2 returns, with a post 0.3 m from the scanner in front of about half of
+    it, is not marked (in the open it is, above)."""
+    sp = scan_of([SimObject((0.3, 0.04), a=0.06, b=0.06)])
+    vis = detection_model(with_rate(component_at(1.0, 0.0), 2.0), sp, CFG)
+    assert 0.05 < vis.visible[0] < 0.9
+    assert not vis.sparse[0]
+
+
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_sparse_track_is_dropped_with_its_weight(mode):
+    """
+    A track 1 m from the scanner expecting 2 returns, where a solid object of its size
+    would return on some 58 beams, is a handful of clutter returns, not an object: the
+    pipeline drops it, counts it (``sparse``) and takes its weight from the cardinality.
+    Oracle: the same scan from a state that never had it, its cardinality one object
+    less (to within one step's survival, as for ``at_sensor`` above).
+    """
+    cfg = from_dict({'background': {'enabled': False}, 'model': {'mode': mode}})
+    far = component_at(5.0, 0.0)
+    both = Mixture.concat([far, evolve(with_rate(component_at(1.0, 0.5), 2.0),
+                                       label=np.array([2]))])
+    card2, card1 = np.full(cfg.model.n_max + 1, -np.inf), np.full(cfg.model.n_max + 1, -np.inf)
+    card2[2] = card1[1] = 0.0
+    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
+                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
+    state, with_it = step(pipeline_with(both, cfg, card2), scan, cfg)
+    oracle, without = step(pipeline_with(far, cfg, card1), scan, cfg)
+    assert with_it.diagnostics['sparse'] == 1 and without.diagnostics['sparse'] == 0
+    assert with_it.diagnostics['at_sensor'] == 0 and with_it.diagnostics['left_view'] == 0
+    got, want = state.filter.mixture, oracle.filter.mixture
+    assert got.label.tolist() == want.label.tolist()
+    np.testing.assert_allclose(got.w, want.w, atol=1e-3)
+    np.testing.assert_allclose(got.m, want.m, atol=1e-6)
+    assert with_it.expected_count == pytest.approx(without.expected_count, abs=1e-3)
+    assert with_it.expected_count < 1.1
+
+
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_refused_birth_is_a_cell_too_small_to_be_born_from(mode):
+    """
+    ``update_state(no_birth=...)`` refusing every birth it is asked about gives the
+    update of ``birth.min_points`` 3, where the same two returns (5 cm apart, far from
+    any track) are too few to be born from: both leave them to clutter return by return.
+    It is asked only about cells no component is paired with: the track's own cell (ten
+    returns in a row, one cell in every partition) is not among them, and is born from
+    as before (the cell of 10 passes ``min_points`` 3 too).
+    """
+    base = {'model': {'mode': mode, 'surveillance_area': 400.0}}
+    cfg2, cfg3 = from_dict(base), from_dict({**base, 'birth': {'min_points': 3}})
+    track = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.05), w=np.array([0.9]))
+    state = FilterState.initial(cfg2)
+    state = evolve(state, mixture=track, next_label=2)
+    pts = np.vstack([np.column_stack([np.full(10, 4.9), np.linspace(-0.22, 0.23, 10)]),
+                     [[-3.0, 2.0], [-3.05, 2.0]]])
+    pred = predict_state(state, 0.1, cfg2)
+    p_d = np.full(len(pred.mixture), 0.9)
+    asked = []
+
+    def refuse_all(births):
+        asked.append(births.m[:, :2].copy())
+        return np.ones(len(births.alpha), dtype=bool)
+
+    a, _, diag_a = update_state(pred, pts, p_d, cfg2, no_birth=refuse_all)
+    b, _, diag_b = update_state(pred, pts, p_d, cfg3)
+    assert diag_a.sparse_births == 1 and diag_b.sparse_births == 0
+    assert len(asked) == 1 and np.all(np.abs(asked[0][:, 0] + 3.0) < 0.1)
+    for f in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label'):
+        np.testing.assert_allclose(getattr(a.mixture, f), getattr(b.mixture, f),
+                                   rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(a.log_card, b.log_card, rtol=1e-12, atol=1e-12)
+    # the pair is refused, not lost: without the refusal it is a new object
+    c, _, _ = update_state(pred, pts, p_d, cfg2)
+    assert c.mixture.label.max() > a.mixture.label.max()
+
+
+def test_births_the_scan_shows_sparse_or_around_the_sensor_are_named():
+    """
+    ``sparse_births`` on birth posteriors of semi-axis 0.25 m: one 0.8 m away expecting
+    2.7 returns (it spans some 72 beams of 0.5 deg: a tenth is 7.2) is named; the same
+    expecting 27 is not; one 8 m away expecting 2.7 (it spans 7.2 beams) is not; one
+    whose outline holds the sensor is named whatever its rate. Oracle: the beams by hand.
+    """
+    sp = scan_of([])
+    xy = np.array([[0.8, 0.1], [0.8, 0.1], [8.0, 0.0], [0.1, 0.05]])
+    rate = np.array([2.7, 27.0, 2.7, 50.0])
+    n = len(xy)
+    v = np.full(n, 26.0)
+    births = PairUpdate(np.zeros(n), rate.copy(), np.ones(n), np.hstack([xy, np.zeros((n, 2))]),
+                        np.broadcast_to(np.diag([0.01, 0.01, 1.0, 1.0]), (n, 4, 4)).copy(), v,
+                        ((v - IW_OFFSET) * 0.25 ** 2)[:, None, None] * np.eye(2))
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    beams = 2.0 * np.arcsin(np.minimum(0.25 / r, 1.0)) / abs(sp.angle_step)
+    assert 27 > 0.1 * beams[0] > 2.7 > 0.1 * beams[2]
+    assert sparse_births(births, sp, CFG).tolist() == [True, False, False, True]
+    off = from_dict({'detection': {'model': 'constant'}})
+    assert not sparse_births(births, sp, off).any()
+
+
+def test_a_scan_without_a_beam_spacing_marks_nothing_sparse():
+    """A scan of one beam (or none) has no beam spacing to count the beams an extent spans
+    by: nothing is marked sparse, and nothing divides by zero."""
+    one = scan_to_points(ScanData(Header(Stamp(0, 0), 'laser'), 0.0, 0.0, 0.01, 0.1, 10.0,
+                                  np.array([0.75], dtype=np.float32)))
+    assert one.angle_step == 0.0 and len(one.angles) == 1
+    with np.errstate(all='raise'):
+        vis = detection_model(with_rate(component_at(1.0, 0.0), 0.5), one, CFG)
+        assert not vis.sparse.any()
+        births = PairUpdate(np.zeros(1), np.array([0.5]), np.ones(1),
+                            np.array([[1.0, 0.0, 0.0, 0.0]]), np.eye(4)[None] * 0.01,
+                            np.array([26.0]), ((26.0 - IW_OFFSET) * 0.0625 * np.eye(2))[None])
+        assert not sparse_births(births, one, CFG).any()
