@@ -202,8 +202,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     ``detections`` (valid returns), ``background_dropped``, ``warmup`` (1 while the
     background warm-up runs), ``left_view`` (components dropped as out of the field of
     view), ``at_sensor`` (components dropped because the sensor lay within their outline),
-    ``sparse`` (components in full view dropped because they expected fewer returns than
-    ``detection.min_fill`` of the beams they span),
+    ``sparse`` (components in view dropped because they expected fewer returns than
+    ``detection.min_fill`` of the beams they span; ``sparse_births``, births refused so),
     ``absorbed`` (components dropped because the returns they stood on were just
     learned as background), ``partitions``, ``cells``,
     ``pairs``, ``components``, ``births``, ``capped_partitions``, ``capped_cells``,
@@ -212,8 +212,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     tracks), ``joined_labels`` (labels joined into another as parts of one object,
     ``reduction.pair_scans``), ``relabelled`` (labels given a new id because they jumped
     farther than ``extraction.max_speed`` allows), ``handed_over`` (lost ids passed on to
-    a new object where the lost one would be) and ``grouped`` (thin contour pieces
-    reported as part of another's object).
+    a new object where the lost one would be), ``grouped`` (thin contour pieces
+    reported as part of another's object), ``held`` (components held from a miss while
+    wholly in shadow) and ``unexplained`` (1 when no partition explained the scan).
     """
     t0 = time.perf_counter()
     try:
@@ -313,8 +314,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     if drop is not None and np.logical_or.reduce(drop):
         # objects that left the field of view or range can never be seen again here:
         # dropped rather than left to coast forever with p_D = 0. So are components the
-        # sensor would stand in, and those in full view that expect far fewer returns than
-        # the beams they span, made of clutter: not objects, so their weight leaves the
+        # sensor would stand in, and those in view that expect far fewer returns than the
+        # beams they span, made of clutter: not objects, so their weight leaves the
         # cardinality too (as the absorbed ones' does)
         at_sensor = vis.at_sensor & ~vis.outside
         sparse = vis.sparse & ~vis.outside & ~vis.at_sensor
