@@ -899,3 +899,59 @@ def test_a_scan_without_a_beam_spacing_marks_nothing_sparse():
                             np.array([[1.0, 0.0, 0.0, 0.0]]), np.eye(4)[None] * 0.01,
                             np.array([26.0]), ((26.0 - IW_OFFSET) * 0.0625 * np.eye(2))[None])
         assert not sparse_births(births, one, CFG).any()
+
+
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_refused_pair_is_one_hypothesis_not_two(mode):
+    """
+    Two returns 5 cm apart, far from any track, their birth refused: the finest
+    partition holds them as one cell, evaluated as two clutter returns, and
+    ``partition.split_small`` adds the same partition with them as lone returns. That is
+    one hypothesis, and the update counts it once: the posterior is the one without the
+    split partition (``split_small`` 0), to rounding. Counted twice, the finest partition
+    (the track's returns as two cells) would weigh double against the coarser one.
+    """
+    def update(split_small):
+        cfg = from_dict({'model': {'mode': mode, 'surveillance_area': 400.0},
+                         'partition': {'split_small': split_small}})
+        track = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.05), w=np.array([0.9]))
+        state = evolve(FilterState.initial(cfg), mixture=track, next_label=2)
+        # the track's returns in two runs 0.25 m apart: two cells in the finest
+        # partition, one in the coarser, so the partitions differ in more than the pair
+        legs = np.concatenate([np.linspace(-0.3, -0.1, 5), np.linspace(0.15, 0.35, 5)])
+        pts = np.vstack([np.column_stack([np.full(10, 4.9), legs]),
+                         [[-3.0, 2.0], [-3.05, 2.0]], [[-1.0, -2.0]]])
+        pred = predict_state(state, 0.1, cfg)
+        return update_state(pred, pts, np.full(len(pred.mixture), 0.9), cfg,
+                            no_birth=lambda b: np.ones(len(b.alpha), dtype=bool))
+
+    a, _, diag_a = update(2)
+    b, _, diag_b = update(0)
+    assert diag_a.partitions == diag_b.partitions + 1        # the split one was built
+    for f in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label'):
+        np.testing.assert_allclose(getattr(a.mixture, f), getattr(b.mixture, f),
+                                   rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(a.log_card, b.log_card, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize('collide', [False, True])
+def test_partitions_that_repeat_once_lonely_cells_are_returns_are_dropped(monkeypatch, collide):
+    """
+    Returns 0-4; cell 0 = {0, 1} is lonely (clutter return by return), cell 4 = {0, 1, 2}
+    is not. {0,1}{2}{3,4} and {0}{1}{2}{3,4} are one hypothesis (the second is dropped,
+    as is a verbatim repeat); {0,1,2}{3,4} is another and stays. With every code's value
+    forced equal (all sums collide) the code-by-code comparison gives the same.
+    """
+    from extended_tracker import tracker
+    if collide:
+        monkeypatch.setattr(tracker, '_mix64', lambda x: np.zeros(np.shape(x), np.uint64))
+    cells = [np.array([0, 1]), np.array([0]), np.array([1]), np.array([2]),
+             np.array([0, 1, 2]), np.array([3, 4])]
+    size = np.array([len(c) for c in cells])
+    lonely = np.array([True, False, False, False, False, False])
+    parts = [np.array(p) for p in ([0, 3, 5], [1, 2, 3, 5], [4, 5], [0, 3, 5])]
+    kept = tracker._distinct_with_lonely(parts, cells, size, lonely, 5)
+    assert [p.tolist() for p in kept] == [[0, 3, 5], [4, 5]]
+    lonely[:] = False                                   # nothing lonely: only the repeat
+    kept = tracker._distinct_with_lonely(parts, cells, size, lonely, 5)
+    assert [p.tolist() for p in kept] == [[0, 3, 5], [1, 2, 3, 5], [4, 5]]
