@@ -698,23 +698,34 @@ def test_a_track_the_sensor_would_stand_in_is_dropped_with_its_weight(mode):
     one object less, gives the same posterior, to within what one step's survival does
     (the drop comes after the prediction, which thins the cardinality by p_S first).
     """
+    with_it, without = assert_dropped_with_its_weight(component_at(-0.1, 0.05), mode)
+    assert with_it.diagnostics['at_sensor'] == 1 and without.diagnostics['at_sensor'] == 0
+    assert with_it.diagnostics['left_view'] == 0
+
+
+def assert_dropped_with_its_weight(extra, mode):
+    """
+    Step one scan of a walker 5 m away from a state holding its track and ``extra``
+    (cardinality: two objects), and from one holding the track alone (one object): the
+    posteriors agree, as they do when the pipeline drops ``extra`` and its weight.
+    Returns both steps' results.
+    """
     cfg = from_dict({'background': {'enabled': False}, 'model': {'mode': mode}})
     far = component_at(5.0, 0.0)
-    both = Mixture.concat([far, evolve(component_at(-0.1, 0.05), label=np.array([2]))])
+    both = Mixture.concat([far, evolve(extra, label=np.array([2]))])
     card2, card1 = np.full(cfg.model.n_max + 1, -np.inf), np.full(cfg.model.n_max + 1, -np.inf)
     card2[2] = card1[1] = 0.0
     (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
                                 laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
     state, with_it = step(pipeline_with(both, cfg, card2), scan, cfg)
     oracle, without = step(pipeline_with(far, cfg, card1), scan, cfg)
-    assert with_it.diagnostics['at_sensor'] == 1 and without.diagnostics['at_sensor'] == 0
-    assert with_it.diagnostics['left_view'] == 0
     got, want = state.filter.mixture, oracle.filter.mixture
     assert got.label.tolist() == want.label.tolist()
     np.testing.assert_allclose(got.w, want.w, atol=1e-3)
     np.testing.assert_allclose(got.m, want.m, atol=1e-6)
     assert with_it.expected_count == pytest.approx(without.expected_count, abs=1e-3)
     assert with_it.expected_count < 1.1                # kept, it would be about 2
+    return with_it, without
 
 
 @pytest.mark.parametrize('x', [0.3, 0.4])
@@ -805,24 +816,10 @@ def test_a_sparse_track_is_dropped_with_its_weight(mode):
     Oracle: the same scan from a state that never had it, its cardinality one object
     less (to within one step's survival, as for ``at_sensor`` above).
     """
-    cfg = from_dict({'background': {'enabled': False}, 'model': {'mode': mode}})
-    far = component_at(5.0, 0.0)
-    both = Mixture.concat([far, evolve(with_rate(component_at(1.0, 0.5), 2.0),
-                                       label=np.array([2]))])
-    card2, card1 = np.full(cfg.model.n_max + 1, -np.inf), np.full(cfg.model.n_max + 1, -np.inf)
-    card2[2] = card1[1] = 0.0
-    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
-                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
-    state, with_it = step(pipeline_with(both, cfg, card2), scan, cfg)
-    oracle, without = step(pipeline_with(far, cfg, card1), scan, cfg)
+    with_it, without = assert_dropped_with_its_weight(
+        with_rate(component_at(1.0, 0.5), 2.0), mode)
     assert with_it.diagnostics['sparse'] == 1 and without.diagnostics['sparse'] == 0
     assert with_it.diagnostics['at_sensor'] == 0 and with_it.diagnostics['left_view'] == 0
-    got, want = state.filter.mixture, oracle.filter.mixture
-    assert got.label.tolist() == want.label.tolist()
-    np.testing.assert_allclose(got.w, want.w, atol=1e-3)
-    np.testing.assert_allclose(got.m, want.m, atol=1e-6)
-    assert with_it.expected_count == pytest.approx(without.expected_count, abs=1e-3)
-    assert with_it.expected_count < 1.1
 
 
 @pytest.mark.parametrize('mode', ['cphd', 'phd'])
