@@ -435,9 +435,8 @@ def _distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
     if len(partitions) < 2 or not sizes.all():
         return partitions
     n_cells = len(cells)
-    cell_len = np.fromiter(map(len, cells), dtype=np.int64, count=n_cells)
-    member_sum = np.add.reduceat(_mix64(np.concatenate(cells)),
-                                 np.concatenate([[0], np.cumsum(cell_len)[:-1]]))
+    member_sum = np.add.reduceat(_mix64(np.concatenate(cells)),          # size: returns
+                                 np.concatenate([[0], np.cumsum(size)[:-1]]))  # per cell
     as_returns = lonely | (size == 1)
     cell_val = np.where(as_returns, member_sum, _mix64(m + np.arange(n_cells)))
     flat = np.concatenate(partitions)
@@ -445,7 +444,7 @@ def _distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
     _, inverse, counts = np.unique(total, return_inverse=True, return_counts=True)
     if counts.max() == 1:
         return partitions
-    keep, seen = [], {}
+    keep, seen = [], set()
     for i, p in enumerate(partitions):
         if counts[inverse[i]] == 1:
             keep.append(p)
@@ -453,7 +452,7 @@ def _distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
         parts = [cells[c] if as_returns[c] else np.array([m + c]) for c in p.tolist()]
         key = np.sort(np.concatenate(parts)).tobytes()
         if key not in seen:
-            seen[key] = i
+            seen.add(key)
             keep.append(p)
     return keep
 

@@ -273,12 +273,18 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     # below 1): no object can be there. Its interval is taken as half a turn about its
     # bearing, which may point out of the field of view (p_D down to 0): clutter around
     # the sensor kept such tracks alive
-    at_sensor = quad_form2(mix.m[:, :2], inv2(extent)) < 1.0
+    at_sensor = _holds_sensor(mix.m, extent)
     sparse = _sparse(mix, half, plain, step, det.min_fill)
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0,
                       at_sensor, sparse)
+
+
+def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
+    """Whether the sensor (the origin) lies within each outline, the ellipse of the
+    expected extent ``extent`` about the centre ``m[:, :2]``."""
+    return quad_form2(m[:, :2], inv2(extent)) < 1.0
 
 
 # visible fraction of its own extent from which the scan shows an object's returns (all
@@ -350,7 +356,7 @@ def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
         return none
     bearing, half, _, r_near, _, _, _ = _geometry(births.m[maybe], extent[maybe],
                                                   births.P[maybe], 0.0, 0.0)
-    at_sensor = quad_form2(births.m[maybe, :2], inv2(extent[maybe])) < 1.0
+    at_sensor = _holds_sensor(births.m[maybe], extent[maybe])
     low = rate[maybe] < det.min_fill * (2.0 * half / step)
     if np.logical_or.reduce(low):
         rows = low.nonzero()[0]
