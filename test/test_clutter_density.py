@@ -98,8 +98,9 @@ def test_an_even_density_given_per_detection_is_the_default_update():
     assert len(est_a) == 2
 
 
-def run_clutter_scene(density, min_fill=None):
-    factory, seconds, seed, overrides, _ = SCENARIOS['clutter']
+def run_clutter_scene(density, min_fill=None, seed=None):
+    factory, seconds, suite_seed, overrides, _ = SCENARIOS['clutter']
+    seed = suite_seed if seed is None else seed
     change = {'model': {'clutter_density': density}}
     if min_fill is not None:
         change['detection'] = {'min_fill': min_fill}
@@ -120,10 +121,15 @@ def test_per_beam_clutter_is_not_tracked_at_the_scanner():
     """15 clutter returns a scan on random beams: some 1.2 a scan within a metre of the
     scanner, where an even spread expects 0.1. Told that, the filter stops reporting
     an object there. (Without the rule that drops sparse tracks, below, which takes
-    most of them either way.)"""
-    false_area, found_area = run_clutter_scene('area', min_fill=0.0)
-    false_beam, found_beam = run_clutter_scene('beam', min_fill=0.0)
-    assert false_beam < 0.5 * false_area
+    most of them either way.) Over the suite's seed and the four after it: 134 false
+    object-scans told an even spread, 20 told the per-beam density (one seed alone is a
+    few tracks, and a small change elsewhere moves its ratio: the suite's seed gives 39
+    and 18, and 45 and 24 with ``model.sigma_accel`` 1; the five 146 and 26)."""
+    runs = np.array([[*run_clutter_scene('area', min_fill=0.0, seed=seed),
+                      *run_clutter_scene('beam', min_fill=0.0, seed=seed)]
+                     for seed in range(5, 10)])
+    false_area, found_area, false_beam, found_beam = runs.sum(axis=0)
+    assert false_beam < 0.3 * false_area
     assert found_beam >= 0.97 * found_area
 
 
