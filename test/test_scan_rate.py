@@ -3,9 +3,11 @@ The scan rate is the scanner's, not the filter's: the simulated tutorial scene (
 walking behind a stander for about 1.8 s, another in front of it) scanned at 5 and at 40
 Hz, tracked with the defaults, keeps every person under one id with no false track and
 every wholly hidden person kept, as at the suite's 10 Hz. The motion model's time step
-and its process noise are per second: with the pipeline's prediction step fixed at
-0.1 s, the 5 Hz run switched ids twice; with the process noise of a 0.1 s step added
-every scan, the 40 Hz run fragmented three times.
+is the scan's: with the pipeline's prediction step fixed at 0.1 s, the 5 Hz run switched
+ids twice; with the process noise of a 0.1 s step added every scan, the 40 Hz run
+fragmented three times. (The process noise itself is a random acceleration held over
+each step, whose velocity variance per second follows the scan period, a quarter at
+40 Hz of what it is at 10 Hz: ``ggiw.cv_matrices``.)
 """
 
 import dataclasses
