@@ -318,7 +318,15 @@ def _sparse(mix: Mixture, half: np.ndarray, plain: np.ndarray, step: float,
     """
     if min_fill <= 0.0 or not step > 0.0:            # no beam spacing: no beams to count
         return np.zeros(len(mix), dtype=bool)
-    return (plain >= IN_VIEW) & (mix.expected_rate() < min_fill * (2.0 * half / step))
+    return (plain >= IN_VIEW) & _expects_too_few(mix.expected_rate(), half, step, min_fill)
+
+
+def _expects_too_few(rate: np.ndarray, half: np.ndarray, step: float,
+                     min_fill: float) -> np.ndarray:
+    """Whether each expected rate is below ``min_fill`` of the beams, ``2 half / step``, an
+    extent of half-angle ``half`` spans (the test of :func:`_sparse`, for tracks and births
+    alike)."""
+    return rate < min_fill * (2.0 * half / step)
 
 
 def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
@@ -349,15 +357,15 @@ def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
     extent = births.V / (births.v - IW_OFFSET)[:, None, None]
     r = np.hypot(births.m[:, 0], births.m[:, 1])
     reach = np.sqrt(extent[:, 0, 0] + extent[:, 1, 1])
-    most_beams = 2.0 * np.arcsin(np.minimum(reach / np.maximum(r, 1e-9), 1.0)) / step
+    widest = np.arcsin(np.minimum(reach / np.maximum(r, 1e-9), 1.0))   # half-angle bound
     rate = births.alpha / births.beta
-    maybe = ((rate < det.min_fill * most_beams) | (r < reach)).nonzero()[0]
+    maybe = (_expects_too_few(rate, widest, step, det.min_fill) | (r < reach)).nonzero()[0]
     if not len(maybe):
         return none
     bearing, half, _, r_near, _, _, _ = _geometry(births.m[maybe], extent[maybe],
                                                   births.P[maybe], 0.0, 0.0)
     at_sensor = _holds_sensor(births.m[maybe], extent[maybe])
-    low = rate[maybe] < det.min_fill * (2.0 * half / step)
+    low = _expects_too_few(rate[maybe], half, step, det.min_fill)
     if np.logical_or.reduce(low):
         rows = low.nonzero()[0]
         plain, _ = _visible_fraction(scan.in_scan_frame(bearing[rows]), half[rows],
