@@ -1,5 +1,5 @@
-"""Small hand-made GGIW mixtures and estimates for the label tests (imported by them, not a
-test)."""
+"""Small hand-made GGIW mixtures and estimates for the label tests, and a comparison of two
+filter states (imported by the tests, not a test)."""
 
 import numpy as np
 
@@ -26,3 +26,15 @@ def estimates(labels, xy):
     m[:, :2] = xy
     return Estimates(np.array(labels, dtype=np.int64), np.ones(k), m, np.zeros((k, 4, 4)),
                      np.zeros((k, 2, 2)), np.ones(k), np.zeros(k, np.int64), np.ones(k))
+
+
+FIELDS = ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label')
+
+
+def assert_same_posterior(got, want):
+    """Two filter states' mixtures agree field by field (to 1e-12 relative, 1e-14
+    absolute) and their cardinalities to 1e-12: the same update, to rounding."""
+    for f in FIELDS:
+        np.testing.assert_allclose(getattr(got.mixture, f), getattr(want.mixture, f),
+                                   rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(got.log_card, want.log_card, rtol=1e-12, atol=1e-12)
