@@ -99,6 +99,14 @@ def test_the_caps_always_leave_a_partition(pts, max_parts, max_cells):
         assert sorted(members.tolist()) == list(range(len(pts)))
 
 
+def assert_same_partition_sets(a, b):
+    """Two PartitionSets hold the same cells and partitions, in order, and the same cap
+    counters."""
+    assert [c.tolist() for c in a.cells] == [c.tolist() for c in b.cells]
+    assert [p.tolist() for p in a.partitions] == [p.tolist() for p in b.partitions]
+    assert (a.capped_partitions, a.capped_cells) == (b.capped_partitions, b.capped_cells)
+
+
 @given(point_sets(max_n=60), st.floats(0.0, 0.5), st.floats(0.05, 2.0),
        st.integers(1, 12), st.integers(1, 80), st.booleans())
 def test_nested_add_equals_one_add_per_partition(pts, d_min, span, max_parts, max_cells, first):
@@ -117,10 +125,7 @@ def test_nested_add_equals_one_add_per_partition(pts, d_min, span, max_parts, ma
     for labels in dist:
         sets[0].add(labels, max_parts, max_cells)
     sets[1].add_nested(dist, max_parts, max_cells)
-    a, b = sets
-    assert [c.tolist() for c in a.cells] == [c.tolist() for c in b.cells]
-    assert [p.tolist() for p in a.partitions] == [p.tolist() for p in b.partitions]
-    assert (a.capped_partitions, a.capped_cells) == (b.capped_partitions, b.capped_cells)
+    assert_same_partition_sets(*sets)
 
 
 @given(point_sets(max_n=60), st.floats(0.0, 0.5), st.integers(2, 4), st.integers(1, 12),
@@ -154,10 +159,7 @@ def test_small_cell_splits_equal_one_add_per_label_array(pts, d_min, split_small
         split[idx] = m + idx
         sets[0].add(split, max_parts, max_cells)
     _small_cell_splits(sets[1], finest, cfg)
-    a, b = sets
-    assert [c.tolist() for c in a.cells] == [c.tolist() for c in b.cells]
-    assert [p.tolist() for p in a.partitions] == [p.tolist() for p in b.partitions]
-    assert (a.capped_partitions, a.capped_cells) == (b.capped_partitions, b.capped_cells)
+    assert_same_partition_sets(*sets)
 
 
 @given(point_sets(max_n=25), st.floats(0.05, 1.5))
