@@ -113,6 +113,42 @@ class PartitionSet:
                 continue
             self._commit([current[r] for r in sorted(current)], max_cells)
 
+    def add_splits(self, finest: np.ndarray, split_small: int, max_partitions: int,
+                   max_cells: int) -> None:
+        """
+        For each cell of the finest distance partition ``finest`` (labels as
+        :func:`distance_partitions` gives them) with 2 up to ``split_small`` detections,
+        that partition with the cell's detections as lone returns, as :meth:`add` would
+        add its label array (added last: under the partition cap the others come first).
+
+        Notes
+        -----
+        Returns closer together than ``d_min`` share a cell in every distance partition,
+        and clutter comes one return at a time, so without this the update could only
+        explain such a pair as an object, whatever the clutter density: in ``clutter``
+        two spurious returns within centimetres of each other were born as a track of
+        weight 1.00 in every scan they fell so, at 0.3 m from the scanner as at 3.5 m.
+        With the pair also held as two single returns, the update weighs an object there
+        against two clutter returns (and a track may still take either return alone).
+        """
+        counts = np.bincount(finest, minlength=len(finest))
+        small = (counts >= 2) & (counts <= split_small)
+        if not np.logical_or.reduce(small):
+            return
+        # the finest partition's cells once (the entries are shared, so a cell one variant
+        # adds is known to the next); each variant is them with one cell's returns alone
+        # at the end, the order add would give that label array
+        base = [[g, self._index.get(g.tobytes())] for g in _groups(finest)]
+        for k, (g, _) in enumerate(base):
+            if not small[g[0]]:              # a cell's label is its smallest detection
+                continue
+            if len(self.partitions) >= max_partitions:
+                self.capped_partitions += 1
+                continue
+            alone = [[g[i:i + 1], self._index.get(g[i:i + 1].tobytes())]
+                     for i in range(len(g))]
+            self._commit(base[:k] + base[k + 1:] + alone, max_cells)
+
     def _commit(self, entries: list, max_cells: int) -> bool:
         """
         Add the partition whose cells are ``entries`` (``[members, id]`` each, ``id`` None
@@ -478,42 +514,8 @@ def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> 
     if big is not None:
         _sub_partitions(points, pset, middle, big, d2_big, predicted, cfg, seed)
     if cfg.split_small >= 2:
-        _small_cell_splits(pset, dist[0], cfg)
+        pset.add_splits(dist[0], cfg.split_small, cfg.max_partitions, cfg.max_cells)
     return pset
-
-
-def _small_cell_splits(pset: PartitionSet, finest: np.ndarray, cfg) -> None:
-    """
-    For each cell of the finest distance partition ``finest`` with 2 up to
-    ``cfg.split_small`` detections, that partition with the cell's detections as lone
-    returns (added last: under the partition cap the others come first).
-
-    Notes
-    -----
-    Returns closer together than ``d_min`` share a cell in every distance partition, and
-    clutter comes one return at a time, so without this the update could only explain
-    such a pair as an object, whatever the clutter density: in ``clutter`` two spurious
-    returns within centimetres of each other were born as a track of weight 1.00 in every
-    scan they fell so, at 0.3 m from the scanner as at 3.5 m. With the pair also held
-    as two single returns, the update weighs an object there against two clutter returns
-    (and a track may still take either return alone).
-    """
-    counts = np.bincount(finest, minlength=len(finest))
-    small = (counts >= 2) & (counts <= cfg.split_small)
-    if not np.logical_or.reduce(small):
-        return
-    # the finest partition's cells once (the entries are shared, so a cell one variant
-    # adds is known to the next); each variant is them with one cell's returns alone at
-    # the end, the order PartitionSet.add would give that label array
-    base = [[g, pset._index.get(g.tobytes())] for g in _groups(finest)]
-    for k, (g, _) in enumerate(base):
-        if not small[g[0]]:                  # a cell's label is its smallest detection
-            continue
-        if len(pset.partitions) >= cfg.max_partitions:
-            pset.capped_partitions += 1
-            continue
-        alone = [[g[i:i + 1], pset._index.get(g[i:i + 1].tobytes())] for i in range(len(g))]
-        pset._commit(base[:k] + base[k + 1:] + alone, cfg.max_cells)
 
 
 def _gate_d2(z: np.ndarray, predicted) -> np.ndarray:

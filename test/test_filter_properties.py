@@ -138,14 +138,11 @@ def test_small_cell_splits_equal_one_add_per_label_array(pts, d_min, split_small
     variant's label array, the cell's returns relabelled past every other label; with
     the distance partitions added first or not at all.
     """
-    from types import SimpleNamespace
-    from extended_tracker.partition import _small_cell_splits, PartitionSet
+    from extended_tracker.partition import PartitionSet
 
     dist, _ = distance_partitions(pts, d_min, d_min + 0.5, 40)
     if not len(pts):
         return
-    cfg = SimpleNamespace(split_small=split_small, max_partitions=max_parts,
-                          max_cells=max_cells)
     sets = PartitionSet(), PartitionSet()
     if nested_first:
         for p in sets:
@@ -158,7 +155,7 @@ def test_small_cell_splits_equal_one_add_per_label_array(pts, d_min, split_small
         idx = (finest == lab).nonzero()[0]
         split[idx] = m + idx
         sets[0].add(split, max_parts, max_cells)
-    _small_cell_splits(sets[1], finest, cfg)
+    sets[1].add_splits(finest, split_small, max_parts, max_cells)
     assert_same_partition_sets(*sets)
 
 
