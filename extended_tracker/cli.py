@@ -22,7 +22,7 @@ import numpy as np
 from pathlib import Path
 import sys
 
-from . import __version__
+from . import __version__, stopping
 from .errors import BagError, ConfigError, ExtendedTrackerError
 
 # bags in ../shared/data/real with more than one LaserScan topic: the one to replay
@@ -260,18 +260,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-class Terminated(BaseException):
-    """SIGTERM arrived: raised in the main thread so cleanups run, as for Ctrl-C."""
-
-
-_terminated = threading.Event()
-
-
-def _terminate(signum, frame):
-    _terminated.set()
-    raise Terminated
-
-
 def main(argv=None) -> int:
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
@@ -281,17 +269,19 @@ def main(argv=None) -> int:
     # SIGTERM (a kill, a supervisor, a CI timeout) ends a command as Ctrl-C does: a replay
     # or simulate removes its staging folder instead of dying with it half written
     previous = None
-    _terminated.clear()
+    stopping.reset()
     if threading.current_thread() is threading.main_thread():
-        previous = signal.signal(signal.SIGTERM, _terminate)
+        previous = signal.signal(signal.SIGTERM, stopping.on_sigterm)
     try:
         status = args.func(args)
+        # a SIGTERM whose exception C code swallowed (see stopping) still ends the command
+        stopping.check()
         sys.stdout.flush()               # a closed pipe shows here, not at interpreter exit
         return status
     except BaseException as err:
         # a cleanup that fails while Terminated unwinds (a writer closing half a record)
         # replaces it with its own exception: the flag still says why the command ended
-        if _terminated.is_set():
+        if stopping.requested():
             print('extended-tracker: terminated', file=sys.stderr)
             return 128 + signal.SIGTERM
         if isinstance(err, BrokenPipeError):

@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from . import stopping
 from .bagio import (
     BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, SCAN_TYPE,
     scan_data, staged_bag, TRACKS_TYPE,
@@ -111,6 +112,7 @@ def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None
     try:
         state = PipelineState.initial(cfg)
         for conn, record_ns, raw in reader.messages(connections=conns):
+            stopping.check()
             try:
                 scan = reader.deserialize(raw, conn.msgtype)
             except Exception as err:  # a corrupt record: say which, stop cleanly

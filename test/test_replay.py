@@ -478,6 +478,106 @@ def test_a_cleanup_failing_after_sigterm_still_ends_as_terminated(monkeypatch, c
         cli.main(['simulate', 'unused'])
 
 
+def _lost_sigterm():
+    """Send this process SIGTERM inside code that swallows every exception, as C code
+    may (an extension module's import did): the handler runs, its exception is lost."""
+    import os
+    import signal
+    import time
+
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)                             # the handler runs here and raises
+    except BaseException:
+        pass
+
+
+@pytest.mark.parametrize('command', ['simulate', 'replay'])
+def test_a_sigterm_whose_exception_is_lost_still_stops_the_command(command, tmp_path,
+                                                                    monkeypatch, capsys):
+    """The handler's exception swallowed: the command still stops at the next scan, with
+    the line and status of a kill and nothing at OUTPUT (one SIGTERM in 30 sent as
+    simulate started its bag was lost in numpy.random's import, and the bag finished)."""
+    import signal
+
+    from extended_tracker import cli
+    import extended_tracker.replay as replay_mod
+    from extended_tracker.sim import laser
+
+    seen = []                                     # scans made (simulate) or tracked
+
+    def lost_at_the_fourth():
+        seen.append(1)
+        if len(seen) == 4:
+            _lost_sigterm()
+
+    if command == 'simulate':
+        real = laser.simulated_scans
+
+        def scans(*a):
+            for item in real(*a):
+                lost_at_the_fourth()
+                yield item
+
+        monkeypatch.setattr(laser, 'simulated_scans', scans)
+        argv = ['simulate', str(tmp_path / 'out'), '--duration', '60']
+    else:
+        write_ros2(tmp_path / 'in', seconds=6.0)
+        real_step = replay_mod.step
+
+        def step(*a, **k):
+            lost_at_the_fourth()
+            return real_step(*a, **k)
+
+        monkeypatch.setattr(replay_mod, 'step', step)
+        argv = ['replay', str(tmp_path / 'in'), '--output', str(tmp_path / 'out'),
+                '--quiet']
+    before = signal.getsignal(signal.SIGTERM)
+    assert cli.main(argv) == 143
+    assert capsys.readouterr() == ('', 'extended-tracker: terminated\n')
+    assert len(seen) == 4                         # stopped at the next scan, not the end
+    assert [p.name for p in tmp_path.iterdir()] == (['in'] if command == 'replay' else [])
+    assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_a_sigterm_lost_in_a_command_without_scans_ends_it_as_terminated(monkeypatch,
+                                                                        capsys):
+    """Where no scan loop looks at the flag (a command that only prints), the end of
+    the command does: the status and line of a kill, not 0."""
+    from extended_tracker import cli
+
+    def lost(args):
+        _lost_sigterm()
+        return 0
+
+    monkeypatch.setattr(cli, 'cmd_simulate', lost)
+    assert cli.main(['simulate', 'unused']) == 143
+    assert capsys.readouterr().err == 'extended-tracker: terminated\n'
+    # the flag is the command's own: the next one starts without it
+    monkeypatch.setattr(cli, 'cmd_simulate', lambda args: 0)
+    assert cli.main(['simulate', 'unused']) == 0
+
+
+def test_a_sigterm_lost_after_the_last_scan_leaves_nothing_at_output(tmp_path,
+                                                                      monkeypatch, capsys):
+    """Lost while a finished bag is closed or its truth written: the bag is not moved
+    into place, and the command ends as a kill does."""
+    from extended_tracker import cli
+    from extended_tracker.bagio import staged_bag
+
+    def lost(args):
+        with staged_bag(tmp_path / 'out') as tmp:
+            tmp.mkdir()
+            (tmp / 'truth.json').write_text('{}')
+            _lost_sigterm()
+        return 0
+
+    monkeypatch.setattr(cli, 'cmd_simulate', lost)
+    assert cli.main(['simulate', 'unused']) == 143
+    assert capsys.readouterr().err == 'extended-tracker: terminated\n'
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_plot_paths_get_their_folder_or_a_one_line_error(tmp_path, capsys):
     """--plot in a folder not made yet: made, as the output bag's is. A plot path that
     cannot be made (its folder is a file): a one-line error before any work, no bag."""

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data, staged_bag
+from .. import stopping
 from ..errors import BagError
 from . import laser
 
@@ -64,6 +65,7 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
         with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
             conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
             for scan, objs in laser.simulated_scans(sim_scene, duration, seed):
+                stopping.check()
                 stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
                 msg = build_message(store, SCAN_TYPE, scan_data(scan))
                 digest.update(scan_ranges_bytes(msg))
