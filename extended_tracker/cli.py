@@ -267,23 +267,28 @@ def main(argv=None) -> int:
         parser.error(f'unrecognized arguments: {" ".join(extra)}')
     args.passed_on = extra
     # SIGTERM (a kill, a supervisor, a CI timeout) ends a command as Ctrl-C does: a replay
-    # or simulate removes its staging folder instead of dying with it half written
-    previous = None
+    # or simulate removes its staging folder instead of dying with it half written; the
+    # handler of both records the signal, which outlives an exception lost in C code
+    previous = {}
     stopping.reset()
     if threading.current_thread() is threading.main_thread():
-        previous = signal.signal(signal.SIGTERM, stopping.on_sigterm)
+        previous = {sig: signal.signal(sig, stopping.on_signal)
+                    for sig in stopping.STOP_SIGNALS}
     try:
         status = args.func(args)
-        # a SIGTERM whose exception C code swallowed (see stopping) still ends the command
+        # a signal whose exception C code swallowed (see stopping) still ends the command
         stopping.check()
         sys.stdout.flush()               # a closed pipe shows here, not at interpreter exit
         return status
     except BaseException as err:
-        # a cleanup that fails while Terminated unwinds (a writer closing half a record)
-        # replaces it with its own exception: the flag still says why the command ended
-        if stopping.requested():
-            print('extended-tracker: terminated', file=sys.stderr)
-            return 128 + signal.SIGTERM
+        # a cleanup that fails while a stop unwinds (a writer closing half a record)
+        # replaces it with its own exception: the signal recorded still says why the
+        # command ended
+        stop = stopping.received()
+        if stop is not None:
+            said = 'interrupted' if stop == signal.SIGINT else 'terminated'
+            print(f'extended-tracker: {said}', file=sys.stderr)
+            return 128 + stop                            # 130 for Ctrl-C, 143 for a kill
         if isinstance(err, BrokenPipeError):
             # the reader went away (`extended-tracker real | head`): end quietly, as a
             # process that SIGPIPE ends does; what stdout still holds goes nowhere
@@ -298,8 +303,9 @@ def main(argv=None) -> int:
             return 130
         raise
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        stopping.reset()                # the command's own: not seen by what runs next
 
 
 if __name__ == '__main__':

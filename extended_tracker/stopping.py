@@ -1,48 +1,57 @@
 """
-A stop asked for by SIGTERM while an ``extended-tracker`` command runs.
+A stop asked for by SIGINT (Ctrl-C) or SIGTERM while an ``extended-tracker`` command runs.
 
-The command line's handler raises :class:`Terminated` in the main thread, so cleanups run
-as they do for Ctrl-C: a half-written bag's staging folder is removed. An exception that
-a signal handler raises can be lost, though: C code running at that moment may clear it.
-An extension module's import did (numpy.random's, the first thing a simulation does):
-about one SIGTERM in 30 sent just after ``simulate`` started its bag was dropped there,
-and the command wrote its whole bag and ended with status 0.
+The command line's handler raises an exception in the main thread, ``KeyboardInterrupt``
+for SIGINT and :class:`Terminated` for SIGTERM, so cleanups run: a half-written bag's
+staging folder is removed. An exception that a signal handler raises can be lost,
+though: C code running at that moment may clear it. An extension module's import did
+(numpy.random's, the first thing a simulation does): of signals sent just after
+``simulate`` started its bag, about one SIGTERM in 30 and one SIGINT in 30 were dropped
+there, and the command wrote its whole bag and ended with status 0.
 
-So the handler also sets a flag that stays set, and the places that decide a command's
-outcome look at it with :func:`check`: every scan of a bag being written or replayed,
-the move of a finished bag into place (:func:`bagio.staged_bag`), and the end of the
-command. Outside the command line nothing sets the flag and :func:`check` does nothing.
+So the handler also records the signal, and the places that decide a command's outcome
+look at it with :func:`check`: every scan of a bag being written or replayed, the move of
+a finished bag into place (:func:`bagio.staged_bag`), and the end of the command. Outside
+the command line (and after a command ends) no signal is recorded and :func:`check`
+does nothing.
 """
 
 from __future__ import annotations
 
-import threading
+import signal
+
+#: the signals the command line takes over, each with the exception it raises
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class Terminated(BaseException):
     """SIGTERM arrived: raised in the main thread so cleanups run, as for Ctrl-C."""
 
 
-_requested = threading.Event()
+_received: list = []                    # the signals received since :func:`reset`
 
 
-def on_sigterm(signum, frame):
-    """The SIGTERM handler: remember the request, then raise :class:`Terminated`."""
-    _requested.set()
-    raise Terminated
+def _stop(signum) -> BaseException:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
+
+
+def on_signal(signum, frame):
+    """The handler of :data:`STOP_SIGNALS`: record the signal, then raise its exception."""
+    _received.append(signum)
+    raise _stop(signum)
 
 
 def check() -> None:
-    """Raise :class:`Terminated` if a SIGTERM arrived (even one whose exception was lost)."""
-    if _requested.is_set():
-        raise Terminated
+    """Raise the first recorded signal's exception again (its first may have been lost)."""
+    if _received:
+        raise _stop(_received[0])
 
 
-def requested() -> bool:
-    """Whether a SIGTERM arrived since :func:`reset`."""
-    return _requested.is_set()
+def received() -> int | None:
+    """The first stop signal received since :func:`reset`, or None."""
+    return _received[0] if _received else None
 
 
 def reset() -> None:
-    """Forget an earlier request (a new command starts)."""
-    _requested.clear()
+    """Forget earlier signals (a new command starts)."""
+    _received.clear()

@@ -478,26 +478,33 @@ def test_a_cleanup_failing_after_sigterm_still_ends_as_terminated(monkeypatch, c
         cli.main(['simulate', 'unused'])
 
 
-def _lost_sigterm():
-    """Send this process SIGTERM inside code that swallows every exception, as C code
+#: the stop signals of the command line: each one's status and line
+STOPS = {'SIGTERM': (143, 'extended-tracker: terminated\n'),
+         'SIGINT': (130, 'extended-tracker: interrupted\n')}
+
+
+def _lost_signal(sig='SIGTERM'):
+    """Send this process ``sig`` inside code that swallows every exception, as C code
     may (an extension module's import did): the handler runs, its exception is lost."""
     import os
     import signal
     import time
 
     try:
-        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), getattr(signal, sig))
         time.sleep(5)                             # the handler runs here and raises
     except BaseException:
         pass
 
 
+@pytest.mark.parametrize('sig', STOPS)
 @pytest.mark.parametrize('command', ['simulate', 'replay'])
-def test_a_sigterm_whose_exception_is_lost_still_stops_the_command(command, tmp_path,
-                                                                    monkeypatch, capsys):
+def test_a_signal_whose_exception_is_lost_still_stops_the_command(command, sig, tmp_path,
+                                                                   monkeypatch, capsys):
     """The handler's exception swallowed: the command still stops at the next scan, with
-    the line and status of a kill and nothing at OUTPUT (one SIGTERM in 30 sent as
-    simulate started its bag was lost in numpy.random's import, and the bag finished)."""
+    the signal's line and status and nothing at OUTPUT (one SIGTERM in 30, and one SIGINT
+    in 30, sent as simulate started its bag was lost in numpy.random's import, and the
+    bag finished)."""
     import signal
 
     from extended_tracker import cli
@@ -509,7 +516,7 @@ def test_a_sigterm_whose_exception_is_lost_still_stops_the_command(command, tmp_
     def lost_at_the_fourth():
         seen.append(1)
         if len(seen) == 4:
-            _lost_sigterm()
+            _lost_signal(sig)
 
     if command == 'simulate':
         real = laser.simulated_scans
@@ -532,34 +539,40 @@ def test_a_sigterm_whose_exception_is_lost_still_stops_the_command(command, tmp_
         monkeypatch.setattr(replay_mod, 'step', step)
         argv = ['replay', str(tmp_path / 'in'), '--output', str(tmp_path / 'out'),
                 '--quiet']
-    before = signal.getsignal(signal.SIGTERM)
-    assert cli.main(argv) == 143
-    assert capsys.readouterr() == ('', 'extended-tracker: terminated\n')
+    before = {s: signal.getsignal(getattr(signal, s)) for s in STOPS}
+    status, line = STOPS[sig]
+    assert cli.main(argv) == status
+    assert capsys.readouterr() == ('', line)
     assert len(seen) == 4                         # stopped at the next scan, not the end
     assert [p.name for p in tmp_path.iterdir()] == (['in'] if command == 'replay' else [])
-    assert signal.getsignal(signal.SIGTERM) is before
+    assert {s: signal.getsignal(getattr(signal, s)) for s in STOPS} == before
 
 
-def test_a_sigterm_lost_in_a_command_without_scans_ends_it_as_terminated(monkeypatch,
-                                                                        capsys):
-    """Where no scan loop looks at the flag (a command that only prints), the end of
-    the command does: the status and line of a kill, not 0."""
-    from extended_tracker import cli
+@pytest.mark.parametrize('sig', STOPS)
+def test_a_signal_lost_in_a_command_without_scans_still_ends_it(sig, monkeypatch, capsys):
+    """Where no scan loop looks for a signal (a command that only prints), the end of
+    the command does: the signal's status and line, not 0."""
+    from extended_tracker import cli, stopping
 
     def lost(args):
-        _lost_sigterm()
+        _lost_signal(sig)
         return 0
 
     monkeypatch.setattr(cli, 'cmd_simulate', lost)
-    assert cli.main(['simulate', 'unused']) == 143
-    assert capsys.readouterr().err == 'extended-tracker: terminated\n'
-    # the flag is the command's own: the next one starts without it
+    status, line = STOPS[sig]
+    assert cli.main(['simulate', 'unused']) == status
+    assert capsys.readouterr().err == line
+    # the signal is the command's own: what runs after it (a library call writing a
+    # bag, the next command) does not see it
+    assert stopping.received() is None
+    stopping.check()
     monkeypatch.setattr(cli, 'cmd_simulate', lambda args: 0)
     assert cli.main(['simulate', 'unused']) == 0
 
 
-def test_a_sigterm_lost_after_the_last_scan_leaves_nothing_at_output(tmp_path,
-                                                                      monkeypatch, capsys):
+@pytest.mark.parametrize('sig', STOPS)
+def test_a_signal_lost_after_the_last_scan_leaves_nothing_at_output(sig, tmp_path,
+                                                                    monkeypatch, capsys):
     """Lost while a finished bag is closed or its truth written: the bag is not moved
     into place, and the command ends as a kill does."""
     from extended_tracker import cli
@@ -569,12 +582,13 @@ def test_a_sigterm_lost_after_the_last_scan_leaves_nothing_at_output(tmp_path,
         with staged_bag(tmp_path / 'out') as tmp:
             tmp.mkdir()
             (tmp / 'truth.json').write_text('{}')
-            _lost_sigterm()
+            _lost_signal(sig)
         return 0
 
     monkeypatch.setattr(cli, 'cmd_simulate', lost)
-    assert cli.main(['simulate', 'unused']) == 143
-    assert capsys.readouterr().err == 'extended-tracker: terminated\n'
+    status, line = STOPS[sig]
+    assert cli.main(['simulate', 'unused']) == status
+    assert capsys.readouterr().err == line
     assert list(tmp_path.iterdir()) == []
 
 
