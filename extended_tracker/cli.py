@@ -269,12 +269,13 @@ def main(argv=None) -> int:
     # SIGTERM (a kill, a supervisor, a CI timeout) ends a command as Ctrl-C does: a replay
     # or simulate removes its staging folder instead of dying with it half written; the
     # handler of both records the signal, which outlives an exception lost in C code
-    previous = {}
+    taken = None
     stopping.reset()
     if threading.current_thread() is threading.main_thread():
-        previous = {sig: signal.signal(sig, stopping.on_signal)
-                    for sig in stopping.STOP_SIGNALS}
+        taken = stopping.take(stopping.on_signal)
     try:
+        if taken:
+            stopping.unblock()          # one sent while a parent had them blocked: here
         status = args.func(args)
         # a signal whose exception C code swallowed (see stopping) still ends the command
         stopping.check()
@@ -303,8 +304,7 @@ def main(argv=None) -> int:
             return 130
         raise
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        stopping.give_back(taken)
         stopping.reset()                # the command's own: not seen by what runs next
 
 

@@ -55,3 +55,32 @@ def received() -> int | None:
 def reset() -> None:
     """Forget earlier signals (a new command starts)."""
     _received.clear()
+
+
+def take(handler) -> tuple:
+    """Make ``handler`` the handler of :data:`STOP_SIGNALS`; return the handlers they had
+    and this thread's signal mask, for :func:`give_back` (:func:`unblock` changes it)."""
+    handlers = {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS}
+    return handlers, signal.pthread_sigmask(signal.SIG_BLOCK, [])
+
+
+def unblock() -> None:
+    """
+    Unblock :data:`STOP_SIGNALS` in this thread.
+
+    A blocked mask is inherited across exec, so a parent whose thread had them blocked
+    starts a process deaf to the stop its handlers are for: so started, ``simulate``
+    killed with SIGTERM wrote its whole hour of bag and ended 0, and the node ran on
+    until SIGKILL. One sent while they were blocked arrives here: its handler runs.
+    """
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+
+
+def give_back(taken: tuple | None) -> None:
+    """Restore the mask and the handlers :func:`take` returned (nothing for None)."""
+    if taken is None:
+        return
+    handlers, mask = taken
+    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    for sig, handler in handlers.items():
+        signal.signal(sig, handler)

@@ -641,13 +641,19 @@ def test_a_command_line_rcl_refuses_is_one_fatal_line(argv, why):
     assert len(fatal) == 1 and why in fatal[0]
 
 
+@pytest.mark.parametrize('blocked', [False, True], ids=['', 'started-blocked'])
 @pytest.mark.parametrize('sig', ['SIGTERM', 'SIGINT'])
-def test_process_shuts_down_cleanly(sig):
+def test_process_shuts_down_cleanly(sig, blocked):
+    """Also when its parent started it with the stop signals blocked (the mask is
+    inherited across exec): the node unblocks what it handles; it ran on until SIGKILL."""
     import os
     import signal
     import subprocess
 
-    proc = subprocess.Popen([_node_exe(), '--ros-args', '-r', 'scan:=/front/scan'],
+    from blocked import stops_blocked
+
+    argv = [_node_exe(), '--ros-args', '-r', 'scan:=/front/scan']
+    proc = subprocess.Popen(stops_blocked(argv) if blocked else argv,
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=dict(os.environ))
     try:
@@ -671,7 +677,7 @@ def test_a_stop_asked_for_while_starting_ends_quietly(monkeypatch):
     """The executable takes SIGINT/SIGTERM before its heavy imports: a signal then only
     sets the stop, the node is never started, the process ends with status 0 (not a
     KeyboardInterrupt traceback from an import, or a kill by SIGTERM), and the handlers
-    it found are back afterwards."""
+    and signal mask it found are back afterwards."""
     import os
     import signal
 
@@ -679,13 +685,15 @@ def test_a_stop_asked_for_while_starting_ends_quietly(monkeypatch):
 
     import extended_tracker.ros.entry as entry
     import extended_tracker.ros.node as node_mod
+    from extended_tracker.stopping import STOP_SIGNALS
 
-    before = {sig: signal.getsignal(sig) for sig in entry.STOP_SIGNALS}
+    before = {sig: signal.getsignal(sig) for sig in STOP_SIGNALS}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, [])
     inits = []
     monkeypatch.setattr(rclpy, 'init', lambda *a, **k: inits.append(1))
     real_main = node_mod.main
 
-    for sig in entry.STOP_SIGNALS:
+    for sig in STOP_SIGNALS:
         def slow_start(args=None, stop=None, sig=sig):
             os.kill(os.getpid(), sig)             # arrives while the node is loading
             assert stop.wait(5)
@@ -694,7 +702,8 @@ def test_a_stop_asked_for_while_starting_ends_quietly(monkeypatch):
         monkeypatch.setattr(node_mod, 'main', slow_start)
         entry.main([])                            # returns: no exception, no exit
     assert not inits
-    assert {sig: signal.getsignal(sig) for sig in entry.STOP_SIGNALS} == before
+    assert {sig: signal.getsignal(sig) for sig in STOP_SIGNALS} == before
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == mask
 
 
 def test_process_refuses_an_invalid_parameter_with_the_reason():

@@ -413,17 +413,21 @@ def test_cli_replay_prints_a_summary(tmp_path):
     assert again.returncode == 2 and 'refusing to overwrite' in again.stderr
 
 
-def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path):
+@pytest.mark.parametrize('blocked', [False, True], ids=['', 'started-blocked'])
+def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, blocked):
     """A kill (SIGTERM: a supervisor, a CI timeout) stops `simulate` mid-way with a line
     and the status 128 + 15, its staging folder removed and nothing at OUTPUT (the next
-    run is not refused). The same handler serves every command."""
+    run is not refused). The same handler serves every command. Also when the parent
+    started it with SIGTERM blocked (inherited across exec): it wrote its whole hour."""
     import signal
     import time
 
+    from blocked import stops_blocked
+
     exe = Path(sys.executable).with_name('extended-tracker')
-    proc = subprocess.Popen([str(exe), 'simulate', str(tmp_path / 'sim'), '--duration',
-                             '3600'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    argv = [str(exe), 'simulate', str(tmp_path / 'sim'), '--duration', '3600']
+    proc = subprocess.Popen(stops_blocked(argv) if blocked else argv,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     # wait until the bag is being written (its storage file inside the staging folder)
     deadline = time.monotonic() + 60
     while not list(tmp_path.glob('.sim.partial-*/sim/*.mcap')):
@@ -481,6 +485,32 @@ def test_a_cleanup_failing_after_sigterm_still_ends_as_terminated(monkeypatch, c
 #: the stop signals of the command line: each one's status and line
 STOPS = {'SIGTERM': (143, 'extended-tracker: terminated\n'),
          'SIGINT': (130, 'extended-tracker: interrupted\n')}
+
+
+@pytest.mark.parametrize('sig', ['SIGTERM', 'SIGINT'])
+def test_a_signal_sent_while_blocked_ends_the_command_as_it_starts(sig, tmp_path, capsys):
+    """Sent while the caller had it blocked: it arrives as the command takes the signals
+    over, before any work (nothing at OUTPUT), and the caller's mask is given back."""
+    import signal
+    import threading
+
+    from extended_tracker import cli
+
+    signum = getattr(signal, sig)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, [signum])
+    try:
+        # to this thread alone: no other thread of the test process may take it
+        signal.pthread_kill(threading.main_thread().ident, signum)
+        assert cli.main(['simulate', str(tmp_path / 'out'), '--duration', '60']) == \
+            STOPS[sig][0]
+        assert signum in signal.pthread_sigmask(signal.SIG_BLOCK, [])
+        assert signum not in signal.sigpending()
+    finally:
+        if signum in signal.sigpending():         # never taken: it would end pytest
+            signal.sigtimedwait([signum], 0)
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    assert capsys.readouterr() == ('', STOPS[sig][1])
+    assert list(tmp_path.iterdir()) == []
 
 
 def _lost_signal(sig='SIGTERM'):

@@ -5,21 +5,23 @@ ends the process quietly with status 0, as one asked for later does, instead of 
 ``KeyboardInterrupt`` traceback from an import or a kill by SIGTERM.
 """
 
-import signal
 import threading
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+from .. import stopping
 
 
-def take_signals(stop: threading.Event) -> dict:
-    """Make SIGINT and SIGTERM set ``stop``; returns the handlers they had."""
-    return {sig: signal.signal(sig, lambda *_: stop.set()) for sig in STOP_SIGNALS}
+def take_signals(stop: threading.Event) -> tuple:
+    """Make SIGINT and SIGTERM set ``stop``, unblocked in this thread even when the
+    process was started with them blocked (:func:`stopping.unblock`); returns what
+    they had, for :func:`give_back`."""
+    taken = stopping.take(lambda *_: stop.set())
+    stopping.unblock()
+    return taken
 
 
-def give_back(previous: dict) -> None:
-    """Restore the handlers :func:`take_signals` replaced."""
-    for sig, handler in previous.items():
-        signal.signal(sig, handler)
+def give_back(previous: tuple | None) -> None:
+    """Restore what :func:`take_signals` changed (nothing for None)."""
+    stopping.give_back(previous)
 
 
 def main(args=None) -> None:

@@ -305,7 +305,7 @@ def main(args=None, stop: threading.Event | None = None) -> None:
     its context still up, and shuts down. rclpy's handlers shut the context down from
     their own thread at once, which raced with the node's last log line and its clean-up.
     """
-    previous = {}
+    previous = None
     if stop is None:
         stop = threading.Event()
         previous = take_signals(stop)
