@@ -579,40 +579,23 @@ def test_a_signal_whose_exception_is_lost_still_stops_the_command(command, sig, 
 
 
 @pytest.mark.parametrize('sig', STOPS)
-def test_a_signal_lost_in_a_command_without_scans_still_ends_it(sig, monkeypatch, capsys):
-    """Where no scan loop looks for a signal (a command that only prints), the end of
-    the command does: the signal's status and line, not 0."""
+@pytest.mark.parametrize('where', ['printing', 'bag_finished'])
+def test_a_signal_lost_outside_the_scan_loops_still_ends_the_command(where, sig, tmp_path,
+                                                                     monkeypatch, capsys):
+    """Lost where no scan loop looks for it: in a command that only prints, the end of
+    the command sees it; while a finished bag is closed or its truth written, the bag is
+    not moved into place. Either way the signal's status and line, not 0."""
     from extended_tracker import cli, stopping
-
-    def lost(args):
-        _lost_signal(sig)
-        return 0
-
-    monkeypatch.setattr(cli, 'cmd_simulate', lost)
-    status, line = STOPS[sig]
-    assert cli.main(['simulate', 'unused']) == status
-    assert capsys.readouterr().err == line
-    # the signal is the command's own: what runs after it (a library call writing a
-    # bag, the next command) does not see it
-    assert stopping.received() is None
-    stopping.check()
-    monkeypatch.setattr(cli, 'cmd_simulate', lambda args: 0)
-    assert cli.main(['simulate', 'unused']) == 0
-
-
-@pytest.mark.parametrize('sig', STOPS)
-def test_a_signal_lost_after_the_last_scan_leaves_nothing_at_output(sig, tmp_path,
-                                                                    monkeypatch, capsys):
-    """Lost while a finished bag is closed or its truth written: the bag is not moved
-    into place, and the command ends as a kill does."""
-    from extended_tracker import cli
     from extended_tracker.bagio import staged_bag
 
     def lost(args):
-        with staged_bag(tmp_path / 'out') as tmp:
-            tmp.mkdir()
-            (tmp / 'truth.json').write_text('{}')
+        if where == 'printing':
             _lost_signal(sig)
+        else:
+            with staged_bag(tmp_path / 'out') as tmp:
+                tmp.mkdir()
+                (tmp / 'truth.json').write_text('{}')
+                _lost_signal(sig)
         return 0
 
     monkeypatch.setattr(cli, 'cmd_simulate', lost)
@@ -620,6 +603,12 @@ def test_a_signal_lost_after_the_last_scan_leaves_nothing_at_output(sig, tmp_pat
     assert cli.main(['simulate', 'unused']) == status
     assert capsys.readouterr().err == line
     assert list(tmp_path.iterdir()) == []
+    # the signal is the command's own: what runs after it (a library call writing a
+    # bag, the next command) does not see it
+    assert stopping.received() is None
+    stopping.check()
+    monkeypatch.setattr(cli, 'cmd_simulate', lambda args: 0)
+    assert cli.main(['simulate', 'unused']) == 0
 
 
 def test_plot_paths_get_their_folder_or_a_one_line_error(tmp_path, capsys):
