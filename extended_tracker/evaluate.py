@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import stopping
 from .config import from_dict
 from .errors import BagError, ExtendedTrackerError
 from .metrics import score_sequence
@@ -128,6 +129,7 @@ def run_scenario(name: str, variant: dict):
     state = PipelineState.initial(cfg)
     truth_seq, est_seq, hidden_seq = [], [], []
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
+        stopping.check()                 # a lost Ctrl-C: before `results` writes README
         state, res = step(state, scan, cfg)
         view = view_of(scan)
         objs = objects_in_view(objs, view)             # once, for the truth and its hidden

@@ -528,16 +528,17 @@ def _lost_signal(sig='SIGTERM'):
 
 
 @pytest.mark.parametrize('sig', STOPS)
-@pytest.mark.parametrize('command', ['simulate', 'replay'])
+@pytest.mark.parametrize('command', ['simulate', 'replay', 'results'])
 def test_a_signal_whose_exception_is_lost_still_stops_the_command(command, sig, tmp_path,
                                                                    monkeypatch, capsys):
     """The handler's exception swallowed: the command still stops at the next scan, with
     the signal's line and status and nothing at OUTPUT (one SIGTERM in 30, and one SIGINT
     in 30, sent as simulate started its bag was lost in numpy.random's import, and the
-    bag finished)."""
+    bag finished); `results` leaves the README as it was."""
     import signal
 
     from extended_tracker import cli
+    import extended_tracker.evaluate as evaluate_mod
     import extended_tracker.replay as replay_mod
     from extended_tracker.sim import laser
 
@@ -559,22 +560,30 @@ def test_a_signal_whose_exception_is_lost_still_stops_the_command(command, sig, 
         monkeypatch.setattr(laser, 'simulated_scans', scans)
         argv = ['simulate', str(tmp_path / 'out'), '--duration', '60']
     else:
-        write_ros2(tmp_path / 'in', seconds=6.0)
-        real_step = replay_mod.step
+        module = replay_mod if command == 'replay' else evaluate_mod
+        real_step = module.step
 
         def step(*a, **k):
             lost_at_the_fourth()
             return real_step(*a, **k)
 
-        monkeypatch.setattr(replay_mod, 'step', step)
-        argv = ['replay', str(tmp_path / 'in'), '--output', str(tmp_path / 'out'),
-                '--quiet']
+        monkeypatch.setattr(module, 'step', step)
+        if command == 'replay':
+            write_ros2(tmp_path / 'in', seconds=6.0)
+            argv = ['replay', str(tmp_path / 'in'), '--output', str(tmp_path / 'out'),
+                    '--quiet']
+        else:
+            readme = (ROOT / 'README.md').read_text()
+            (tmp_path / 'in').write_text(readme)
+            argv = ['results', '--readme', str(tmp_path / 'in')]
     before = {s: signal.getsignal(getattr(signal, s)) for s in STOPS}
     status, line = STOPS[sig]
     assert cli.main(argv) == status
     assert capsys.readouterr() == ('', line)
     assert len(seen) == 4                         # stopped at the next scan, not the end
-    assert [p.name for p in tmp_path.iterdir()] == (['in'] if command == 'replay' else [])
+    assert [p.name for p in tmp_path.iterdir()] == ([] if command == 'simulate' else ['in'])
+    if command == 'results':
+        assert (tmp_path / 'in').read_text() == readme
     assert {s: signal.getsignal(getattr(signal, s)) for s in STOPS} == before
 
 
