@@ -6,7 +6,13 @@ GGIW single-object math against independent oracles (section 3 checks).
 - Monte Carlo over (gamma, x, X) sampled from the component: the gap shrinks as v grows;
 - scipy's invwishart with df = v - d - 1 is the law the mixture's moments assume;
 - the batched update equals a per-component reference loop written with numpy/scipy
-  linear algebra (sqrtm, slogdet, inv) instead of the closed 2x2 forms.
+  linear algebra (sqrtm, slogdet, inv) instead of the closed 2x2 forms;
+- a visible fraction f thins the Poisson rate: likelihood and posterior against
+  quadrature; a partly hidden object's centroid noise h^2 X is a shared offset of all its
+  points (the v -> infinity limit against the joint Gaussian); an expected centroid
+  offset is a shifted measurement;
+- the CV model's noise is one acceleration held over the step (against integrating it);
+- the gate holds a cell anywhere on the outline of the expected extent.
 """
 
 import numpy as np
@@ -179,6 +185,138 @@ def test_batched_update_equals_reference_loop():
         np.testing.assert_allclose(out.P[k], P2, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(out.V[k], V2, rtol=1e-9, atol=1e-12)
         assert (out.v[k], out.alpha[k], out.beta[k]) == pytest.approx((v2, a2, b2))
+
+
+def poisson_gamma_moments(alpha, beta, f, n):
+    """By quadrature over gamma ~ Gam(alpha, beta) with n ~ Poisson(f gamma): the log of
+    the integral of Gam(g) e^{-f g} (f g)^n dg, and the posterior mean and variance of
+    gamma (the rate of the whole object; f of it is seen this scan)."""
+    def integrand(g, power):
+        return np.exp(stats.gamma.logpdf(g, alpha, scale=1 / beta) - f * g
+                      + n * np.log(f * g)) * g ** power
+    z, m1, m2 = (integrate.quad(integrand, 0, np.inf, args=(k,), limit=200)[0]
+                 for k in range(3))
+    return np.log(z), m1 / z, m2 / z - (m1 / z) ** 2
+
+
+@pytest.mark.parametrize('f', [0.15, 0.5, 1.0])
+def test_a_visible_fraction_thins_the_poisson_rate(f):
+    """``rate_scale`` f: the n returns of a cell are Poisson with mean f gamma. The change
+    of the log-likelihood with f, and the posterior Gamma's mean and variance, against
+    quadrature (everything else in the likelihood is the same at every f)."""
+    rng = np.random.default_rng(7)
+    pts, X0 = pedestrian_points(rng, n=5)
+    st = cell_stats(pts, [np.arange(len(pts))])
+    mix = one_component(40, X0, alpha=12.0, beta=1.5)
+    one = np.array([0])
+
+    def update(scale):
+        return update_pairs(mix, one, st, one, RHO, R, rate_scale=np.array([scale]))
+
+    out, full = update(f), update(1.0)
+    log_z, mean, var = poisson_gamma_moments(12.0, 1.5, f, len(pts))
+    log_z1, _, _ = poisson_gamma_moments(12.0, 1.5, 1.0, len(pts))
+    assert out.log_lik[0] - full.log_lik[0] == pytest.approx(log_z - log_z1, rel=1e-8,
+                                                             abs=1e-8)
+    assert out.alpha[0] / out.beta[0] == pytest.approx(mean, rel=1e-8)
+    assert out.alpha[0] / out.beta[0] ** 2 == pytest.approx(var, rel=1e-8)
+
+
+def test_a_hidden_fraction_is_a_centroid_offset_shared_by_the_cells_points():
+    """``hidden`` h: the visible part's centroid is off the centre by an offset of
+    covariance h^2 X that all the cell's points share. In the v -> infinity limit the
+    likelihood is then the joint Gaussian of the stacked points with h^2 X added to
+    every pair's cross-covariance (as the position uncertainty is), and the mean and
+    covariance are a Kalman update whose centroid noise has that added."""
+    rng = np.random.default_rng(8)
+    pts, X0 = pedestrian_points(rng)
+    st = cell_stats(pts, [np.arange(len(pts))])
+    h = 0.6
+    one = np.array([0])
+    mix = one_component(1e6, X0)
+    out = update_pairs(mix, one, st, one, RHO, R, hidden=np.array([h]))
+    P_shared = mix.P[0].copy()
+    P_shared[:2, :2] += h ** 2 * X0
+    exact = (exact_gaussian_marginal(pts, mix.m[0], P_shared, RHO * X0 + R)
+             + log_gamma_poisson(mix.alpha[0], mix.beta[0], len(pts)))
+    assert out.log_lik[0] == pytest.approx(exact, abs=1e-4)
+    # the mean and covariance: the centroid measures H x with noise Y / n + h^2 X
+    H = np.hstack([np.eye(2), np.zeros((2, 2))])
+    P = mix.P[0]
+    S = H @ P @ H.T + (RHO * X0 + R) / len(pts) + h ** 2 * X0
+    K = P @ H.T @ np.linalg.inv(S)
+    np.testing.assert_allclose(out.m[0], mix.m[0] + K @ (pts.mean(axis=0) - H @ mix.m[0]),
+                               rtol=1e-9)
+    np.testing.assert_allclose(out.P[0], P - K @ S @ K.T, rtol=1e-9, atol=1e-15)
+
+
+def test_an_expected_centroid_offset_is_a_shifted_measurement():
+    """``centroid_offset`` o: the innovation is z_bar - (H m + o), so the update equals
+    the plain update of the same cell moved by -o, every posterior field and the
+    likelihood alike (the scatter does not move with the cell)."""
+    rng = np.random.default_rng(9)
+    mix = random_mixture(rng, 3)
+    pts = rng.uniform(-3, 3, (12, 2))
+    offset = np.array([[0.3, -0.2], [-0.15, 0.05], [0.0, 0.4]])
+    comp = np.array([0, 1, 2, 1])
+    cells = [np.arange(0, 5), np.arange(5, 12)]
+    cell = np.array([0, 1, 1, 0])
+    got = update_pairs(mix, comp, cell_stats(pts, cells), cell, RHO, R,
+                       centroid_offset=offset)
+    for k, (i, c) in enumerate(zip(comp, cell)):
+        moved = pts[cells[c]] - offset[i]
+        want = update_pairs(mix, np.array([i]), cell_stats(moved, [np.arange(len(moved))]),
+                            np.array([0]), RHO, R)
+        for name in ('log_lik', 'alpha', 'beta', 'm', 'P', 'v', 'V'):
+            np.testing.assert_allclose(getattr(got, name)[k], getattr(want, name)[0],
+                                       rtol=1e-9, atol=1e-12, err_msg=name)
+
+
+def test_the_motion_noise_is_one_acceleration_held_over_the_step():
+    """The CV model's Q is the covariance of what an acceleration a ~ N(0, sigma^2 I),
+    held over the step, adds to position and velocity: integrated here in small Euler
+    steps (the position's first-order error shrinks with the step count), per axis, the
+    two axes independent."""
+    from extended_tracker.ggiw import cv_matrices
+
+    dt, sigma, steps = 0.13, 1.7, 200_000
+    h = dt / steps
+    pos = vel = 0.0
+    for _ in range(steps // 1000):                # 1000 sub-steps at a time, vectorised
+        v_seq = vel + h * np.arange(1, 1001)      # unit acceleration
+        pos += h * v_seq.sum()
+        vel = v_seq[-1]
+    g = np.array([pos, vel])                      # what a unit acceleration adds
+    F, Q = cv_matrices(dt, sigma)
+    np.testing.assert_allclose(F @ [1.0, 2.0, 3.0, 4.0], [1 + 3 * dt, 2 + 4 * dt, 3, 4])
+    axis = sigma ** 2 * np.outer(g, g)
+    for a in (0, 1):                              # x: rows 0 and 2; y: rows 1 and 3
+        np.testing.assert_allclose(Q[np.ix_([a, a + 2], [a, a + 2])], axis, rtol=1e-4)
+    assert Q[0, 1] == Q[0, 3] == Q[2, 1] == Q[2, 3] == 0.0
+
+
+def test_the_gate_holds_a_cell_on_the_objects_outline():
+    """A cell may be one side of an object: its centroid on the outline of the expected
+    extent (the ellipse whose uniform fill has second moments X: semi-axes twice the
+    square roots of X's eigenvalues). With the default rho, sensor noise and gate
+    probability, a well-localised component's gate holds a cell centred anywhere on it,
+    and not one three times as far out (the 0.999 gate ends near twice)."""
+    from extended_tracker.config import TrackerConfig
+    from extended_tracker.ggiw import gate_pairs
+    from extended_tracker.tracker import gate_threshold, sensor_noise
+
+    cfg = TrackerConfig()
+    X0 = np.array([[0.09, 0.02], [0.02, 0.05]])              # a pedestrian
+    mix = one_component(200, X0, p_std=0.01)
+    lam, U = np.linalg.eigh(X0)
+    t = np.linspace(0, 2 * np.pi, 72, endpoint=False)
+    outline = (U @ (2 * np.sqrt(lam)[:, None] * np.array([np.cos(t), np.sin(t)]))).T
+    for scale, inside in ((1.0, True), (3.0, False)):
+        pts = mix.m[0, :2] + scale * outline
+        st = cell_stats(pts, [np.array([j]) for j in range(len(pts))])
+        comp, cell = gate_pairs(mix, st, cfg.model.rho, sensor_noise(cfg),
+                                gate_threshold(cfg))
+        assert (len(cell) == len(pts)) if inside else (len(cell) == 0), (scale, cell)
 
 
 def test_no_pairs_give_an_empty_update_shaped_as_the_batch():

@@ -1,4 +1,5 @@
-"""GGIW merging: the inverse Wishart moment match against sampling, and its floor."""
+"""GGIW merging: the Gaussian and inverse Wishart moment matches against sampling, the
+Gamma shape, the floor, and whose label a merge keeps."""
 
 import numpy as np
 import pytest
@@ -49,6 +50,32 @@ def test_iw_merge_matches_the_mixture_moments_by_sampling():
     gap = np.linalg.slogdet(merged)[1].mean() - np.linalg.slogdet(drawn)[1].mean()
     assert abs(gap) < 0.02
     assert out.v[0] < mix.v.min()            # here the match is vaguer than every member
+
+
+def test_gaussian_merge_matches_the_mixture_moments_by_sampling():
+    """The merged kinematic Gaussian has the mixture's mean and covariance, the spread of
+    the members' means included, against draws from the mixture; the merge keeps the
+    heaviest member's label and the summed weight."""
+    rng = np.random.default_rng(8)
+    w = np.array([0.2, 0.5, 0.3])
+    mix = mixture(w, [14.0, 20.0, 30.0], [extent(0.3, 0.2, 0.1)] * 3)
+    m = np.array([[1.0, 2.0, 0.5, 0.0], [1.4, 1.8, 0.2, 0.3], [0.8, 2.3, 0.6, -0.1]])
+    A = rng.normal(0, 0.2, (3, 4, 4))
+    P = A @ A.swapaxes(1, 2) + 0.01 * np.eye(4)
+    mix = Mixture(mix.w, mix.alpha, mix.beta, m, P, mix.v, mix.V, np.array([4, 9, 6]))
+    out = merge_groups(mix, [np.arange(3)])
+    n = 400_000
+    counts = rng.multinomial(n, w / w.sum())
+    drawn = np.concatenate([rng.multivariate_normal(m[i], P[i], c)
+                            for i, c in enumerate(counts)])
+    # 4e5 draws: the sample mean is within ~1e-3 and the covariance within ~3e-3 of
+    # theirs (entries up to ~0.3), so 5e-3 and 1e-2 leave room
+    np.testing.assert_allclose(out.m[0], drawn.mean(axis=0), atol=5e-3)
+    np.testing.assert_allclose(out.P[0], np.cov(drawn.T), atol=1e-2)
+    # without the spread of the means the covariance is short by some 0.07 on position
+    within = np.einsum('i,ijk->jk', w / w.sum(), P)
+    assert np.abs(out.P[0] - within).max() > 0.05
+    assert out.label[0] == 9 and out.w[0] == pytest.approx(1.0)
 
 
 def test_iw_merge_stays_finite_where_the_match_reaches_the_boundary():
