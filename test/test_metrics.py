@@ -78,6 +78,18 @@ def test_id_switches_and_fragmentation():
     assert per[2].n_missed == 1
 
 
+def test_an_object_found_late_is_no_fragmentation():
+    """A fragmentation is a track lost and found again: an object with no estimate in its
+    first scans, then one label to the end, has none (and no switch)."""
+    I = 0.04 * np.eye(2)[None]
+    truth = [([3], np.array([[float(k), 0.0]]), I) for k in range(5)]
+    none = ([], np.zeros((0, 2)), np.zeros((0, 2, 2)))
+    est = [none, none] + [([8], np.array([[float(k), 0.0]]), I) for k in range(2, 5)]
+    score, _ = score_sequence(truth, est)
+    assert (score.fragmentations, score.id_switches) == (0, 0)
+    assert score.cardinality_error == pytest.approx(2 / 5)
+
+
 def test_hidden_objects_kept_are_counted_by_the_assignment():
     """
     Two objects over three scans; the first is hidden in scans 1 and 2 and has an

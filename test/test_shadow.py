@@ -64,6 +64,38 @@ def test_half_behind_another_object():
     assert p_d(component_at(5.0, 0.0), sp) == pytest.approx(0.45, abs=0.08)
 
 
+@pytest.mark.parametrize('sigma, k, widen', [(0.1, 1.0, 0.1), (0.1, 2.0, 0.2),
+                                              (0.5, 1.0, 0.3), (0.0, 1.0, 0.0)])
+def test_the_interval_is_widened_by_the_position_std_up_to_max_widen(sigma, k, widen):
+    """The widened interval's half-width is the extent's across the line of sight plus
+    k position stds across it, at most max_widen (0.3 m): here an object 5 m ahead, its
+    extent 0.25 m across, sigma the position std across the line of sight."""
+    from extended_tracker.sensing.shadow import _geometry
+
+    mix = component_at(5.0, 0.0, p_std=0.01)
+    P = mix.P.copy()
+    P[0, 1, 1] = sigma ** 2
+    _, half, half_widened, *_ = _geometry(mix.m, mix.expected_extent(), P, k, 0.3)
+    assert half[0] == pytest.approx(np.arcsin(0.25 / 5.0), rel=1e-12)
+    assert half_widened[0] == pytest.approx(np.arcsin((0.25 + widen) / 5.0), rel=1e-12)
+
+
+def test_the_rate_scale_is_the_visible_fraction_down_to_a_twentieth():
+    """A partly hidden object expects that part of its returns: rate_scale equals the
+    visible fraction wherever a twentieth or more is seen (0.05 below that)."""
+    cfg = from_dict({'detection': {'p_d0': 0.9, 'max_widen': 0.0,
+                                   'scale_rate_by_visibility': True}})
+    seen = []
+    for y in np.linspace(0.0, 0.7, 15):           # the occluder's edge sweeps the object
+        sp = scan_of([SimObject((2.0, y), a=0.2, b=0.45), SimObject((5.0, 0.0), a=0.25,
+                                                                      b=0.25)])
+        vis = detection_model(component_at(5.0, 0.0), sp, cfg)
+        assert vis.rate_scale[0] == max(vis.visible[0], 0.05)
+        seen.append(vis.visible[0])
+    assert min(seen) < 0.05 and max(seen) == 1.0
+    assert any(0.05 < v < 0.5 for v in seen)      # some scaled below a half
+
+
 def test_centroid_offset_is_zero_in_full_view_and_points_to_the_seen_half():
     """
     The visible centroid's offset: exactly 0 (and the visible fraction exactly 1) for an
