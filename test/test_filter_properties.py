@@ -186,6 +186,69 @@ def test_distance_partition_matches_definition(pts, d):
     assert len(pairs) == len(set(lab.tolist())) == len(set(seen.tolist()))
 
 
+def test_a_merge_at_exactly_a_threshold_joins_and_each_threshold_comes_once():
+    """The thresholds are closed ('closer than or as close as d'), and each distinct one
+    gives one partition: returns exactly 0.5 m apart are one cell at 0.5, and with
+    d_min = d_max = 0.5 there is that one partition, not two alike."""
+    pts = np.array([[0.0, 0.0], [0.5, 0.0], [1.0, 0.0], [3.0, 0.0]])
+    parts, dropped = distance_partitions(pts, 0.25, 0.5, 10)
+    assert [p.tolist() for p in parts] == [[0, 1, 2, 3], [0, 0, 0, 3]] and dropped == 0
+    parts, _ = distance_partitions(pts, 0.5, 0.5, 10)
+    assert [p.tolist() for p in parts] == [[0, 0, 0, 3]]
+
+
+def test_kmeans_ends_at_a_lloyd_fixed_point():
+    """Each point is nearest the mean of its own cluster: two tight groups 0.6 m apart,
+    5 m out along one ray (centres pulled towards the origin would take the inner points
+    of the far group)."""
+    from extended_tracker.partition import kmeans_pp
+
+    rng = np.random.default_rng(11)
+    direction = np.array([0.6, 0.8])
+    pts = np.concatenate([5.0 * direction + rng.normal(0, 0.08, (5, 2)),
+                          5.6 * direction + rng.normal(0, 0.08, (5, 2))])
+    labels = kmeans_pp(pts, 2, seed=3)
+    means = np.array([pts[labels == c].mean(axis=0) for c in range(2)])
+    nearest = np.linalg.norm(pts[:, None] - means[None], axis=2).argmin(axis=1)
+    assert (nearest == labels).all()
+    assert sorted(np.bincount(labels).tolist()) == [5, 5]
+
+
+def test_prediction_partition_takes_only_the_returns_inside_a_gate():
+    """Returns inside a confident prediction's gate go to it; one outside every gate keeps
+    its distance-partition cell, however near the gate's edge."""
+    from extended_tracker.partition import prediction_partition
+
+    predicted = {'centre': np.array([[0.0, 0.0], [2.0, 0.0]]),
+                 'gate_inv': np.array([np.eye(2) / 0.01] * 2), 'gate': 9.0}   # 0.3 m
+    pts = np.array([[0.2, 0.0], [0.0, 0.29], [0.45, 0.0], [1.85, 0.1], [2.0, 0.5]])
+    fallback = np.array([0, 0, 2, 3, 3])
+    labels = prediction_partition(pts, predicted, fallback)
+    assert labels.tolist() == [0, 0, 2 + 2, 1, 2 + 3]
+
+
+def test_a_cell_of_four_returns_across_two_predictions_is_also_offered_split():
+    """Sub-partitioning splits a cell of at least four returns that confident predictions
+    say holds several objects: four returns 0.08 m apart (closer than d_min, so one cell
+    in every distance partition) with a confident prediction on each half; some partition
+    has the halves as two cells, which no distance partition has (prediction
+    partitioning, which would offer the same, is off)."""
+    from dataclasses import replace
+
+    cfg = replace(TrackerConfig().partition, prediction_partition=False)
+
+    def cell_sets(pset):
+        return [sorted(sorted(pset.cells[c].tolist()) for c in part)
+                for part in pset.partitions]
+
+    pts = np.array([[3.0, -0.12], [3.0, -0.04], [3.0, 0.04], [3.0, 0.12]])
+    predicted = {'centre': np.array([[3.0, -0.08], [3.0, 0.08]]),
+                 'gate_inv': np.array([np.eye(2) / 0.09] * 2), 'gate': 13.8,
+                 'rate': np.array([2.0, 2.0])}
+    assert [[0, 1], [2, 3]] in cell_sets(build_partitions(pts, cfg, predicted))
+    assert [[0, 1], [2, 3]] not in cell_sets(build_partitions(pts, cfg))
+
+
 @given(mixtures(max_k=6))
 def test_merging_preserves_weight_and_validity(mix):
     idx = np.arange(len(mix))

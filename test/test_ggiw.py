@@ -293,6 +293,16 @@ def test_the_motion_noise_is_one_acceleration_held_over_the_step():
     for a in (0, 1):                              # x: rows 0 and 2; y: rows 1 and 3
         np.testing.assert_allclose(Q[np.ix_([a, a + 2], [a, a + 2])], axis, rtol=1e-4)
     assert Q[0, 1] == Q[0, 3] == Q[2, 1] == Q[2, 3] == 0.0
+    # and the prediction's covariance is that of states drawn from the component, moved
+    # dt on and given such an acceleration each
+    rng = np.random.default_rng(10)
+    mix = random_mixture(rng, 1)
+    x = rng.multivariate_normal(mix.m[0], mix.P[0], 400_000)
+    acc = rng.normal(0.0, sigma, (len(x), 2))
+    moved = np.column_stack([x[:, :2] + dt * x[:, 2:] + g[0] * acc, x[:, 2:] + g[1] * acc])
+    out = predict(mix, dt, 0.99, sigma, 1.5, 2.5)
+    # 4e5 draws: each covariance entry within ~0.5 % of the largest, so 1 % of it
+    np.testing.assert_allclose(out.P[0], np.cov(moved.T), atol=1e-2 * np.abs(out.P[0]).max())
 
 
 def test_the_gate_holds_a_cell_on_the_objects_outline():
