@@ -351,6 +351,12 @@ def test_miss_factor_includes_zero_point_detections():
     val, _ = integrate.quad(lambda g: stats.gamma.pdf(g, 3.0, scale=1 / 1.5) * np.exp(-g),
                             0, np.inf)
     assert expected == pytest.approx(1 - 0.8 + 0.8 * val, rel=1e-9)
+    # a quarter visible: the returns are Poisson with mean gamma / 4, none with
+    # probability E[e^{-gamma / 4}]
+    val, _ = integrate.quad(lambda g: stats.gamma.pdf(g, 3.0, scale=1 / 1.5)
+                            * np.exp(-0.25 * g), 0, np.inf)
+    got = np.exp(log_miss_factor(mix, p_d, rate_scale=np.array([0.25])))[0]
+    assert got == pytest.approx(1 - 0.8 + 0.8 * val, rel=1e-9)
 
 
 def test_prediction_keeps_means_and_forgets_per_second():

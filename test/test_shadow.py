@@ -628,6 +628,28 @@ def test_putting_objects_into_the_cardinality_matches_enumeration(added):
         np.testing.assert_allclose(back, low, atol=1e-15)
 
 
+@pytest.mark.parametrize('removed', [0.4, 1.0, 1.3, 2.75])
+def test_taking_objects_from_the_cardinality_matches_enumeration(removed):
+    """
+    ``thin_cardinality``, the converse: each of the whole objects and the fractional rest
+    is taken with its probability, the count held at 0 where there is none to take.
+    Oracle: the enumeration of those outcomes (a pmf with mass at 0 and 1, where that
+    floor matters).
+    """
+    rng = np.random.default_rng(int(removed * 100) + 1)
+    p = rng.dirichlet(np.ones(9))
+    steps = [1.0] * int(removed) + ([removed - int(removed)] if removed % 1 else [])
+    want = np.zeros(9)
+    for n, pn in enumerate(p):
+        for taken in product([0, 1], repeat=len(steps)):
+            prob = pn
+            for f, t in zip(steps, taken):
+                prob *= f if t else 1.0 - f
+            want[max(n - sum(taken), 0)] += prob
+    got = np.exp(thin_cardinality(np.log(p), removed))
+    np.testing.assert_allclose(got, want, atol=1e-14, rtol=1e-12)
+
+
 def test_only_confirmed_labels_wholly_in_shadow_are_held():
     """
     A label reported but not yet confirmed (M of N) still fades, so that a spurious track
