@@ -241,8 +241,8 @@ def staged_bag(out: Path):
     rosbags names the storage file after the bag's folder, so the bag is written under
     ``out``'s own name inside a hidden staging folder beside it (``.OUT.partial-PID``)
     and the finished bag holds ``OUT.mcap``. An exception or an interruption in the
-    block removes the staging folder and leaves nothing at ``out``, as does a SIGTERM
-    that arrived in it (:mod:`stopping`) when its exception was lost on the way.
+    block removes the staging folder and leaves nothing at ``out``, as does a Ctrl-C or
+    SIGTERM that arrived in it (:mod:`stopping`) when its exception was lost on the way.
     """
     stage = out.parent / f'.{out.name}.partial-{os.getpid()}'
     if stage.exists():
@@ -250,7 +250,7 @@ def staged_bag(out: Path):
     stage.mkdir(parents=True)
     try:
         yield stage / out.name
-        stopping.check()                 # a SIGTERM whose exception was lost: not moved
+        stopping.check()                 # a signal whose exception was lost: not moved
         os.replace(stage / out.name, out)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -10,10 +10,14 @@ though: C code running at that moment may clear it. An extension module's import
 there, and the command wrote its whole bag and ended with status 0.
 
 So the handler also records the signal, and the places that decide a command's outcome
-look at it with :func:`check`: every scan of a bag being written or replayed, the move of
-a finished bag into place (:func:`bagio.staged_bag`), and the end of the command. Outside
-the command line (and after a command ends) no signal is recorded and :func:`check`
-does nothing.
+look at it with :func:`check`: every scan of a bag being written or replayed and of the
+scenarios ``results`` runs, the move of a finished bag into place
+(:func:`bagio.staged_bag`), and the end of the command. Outside the command line (and
+after a command ends) no signal is recorded and :func:`check` does nothing.
+
+:func:`take`, :func:`unblock` and :func:`give_back` install and remove handlers for both
+signals: the command line's :func:`on_signal`, and the node's, which only asks its spin
+loop to stop (:mod:`ros.entry`).
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data, staged_bag
 from .. import stopping
+from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data, staged_bag
 from ..errors import BagError
 from . import laser
 
