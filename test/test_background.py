@@ -113,6 +113,51 @@ def test_beam_seen_empty_is_free_and_a_protecting_track_holds_it():
     assert not state.free.any() and np.allclose(state.background, 4.0)
 
 
+def test_a_return_within_margin_of_the_background_is_background():
+    """Learned at 4 m (margin 0.15 m): a return 0.12 m beyond is background and dropped,
+    one 0.2 m beyond is not."""
+    cfg = from_dict({}).background
+    no = np.zeros(3, bool)
+    _, keep = _empty_then([4.0] * 12 + [4.12], cfg, no)
+    assert not keep.any()
+    _, keep = _empty_then([4.0] * 12 + [4.2], cfg, no)
+    assert keep.all()
+
+
+def test_the_background_range_smooths_the_beams_returns_with_time_constant_learn_time():
+    """A beam returning ranges that wander within the margin: its background range, once
+    learned, is the exponential smoothing of every return from the first on, with gain
+    dt / learn_time per scan (the candidate is refined so while it waits to be confirmed,
+    and carried into the background). Oracle: the smoothing written as a loop."""
+    cfg = from_dict({}).background                       # learn_time 2 s, confirm 1 s
+    rng = np.random.default_rng(13)
+    ranges = np.float32(4.0 + rng.uniform(-0.07, 0.07, 40))
+    state, keep = _empty_then(ranges, cfg, np.zeros(3, bool))
+    gain = 0.1 / cfg.learn_time
+    want = float(ranges[0])
+    for r in ranges[1:]:
+        want += gain * (float(r) - want)
+    assert not keep.any()
+    np.testing.assert_allclose(state.background, want, rtol=1e-12)
+
+
+def test_neighbours_are_the_beams_within_margin_across_at_the_range():
+    """Beams k apart at range r are neighbours while the arc between them, r k step, is
+    at most margin: checked against the chord 2 r sin(k step / 2) a little inside and
+    outside that range for every offset."""
+    from extended_tracker.sensing.background import _OFFSETS, _reach
+
+    step, margin = np.radians(0.5), 0.15
+    reach = _reach(step, margin)
+    for k, limit in zip(_OFFSETS.tolist(), reach.tolist()):
+        if k == 0:
+            assert limit == np.inf
+            continue
+        for r, near in ((0.95 * limit, True), (1.05 * limit, False)):
+            assert (2 * r * np.sin(abs(k) * step / 2) <= margin) == near, (k, r)
+            assert (r <= limit) == near
+
+
 def test_person_who_stops_in_open_space_keeps_one_id():
     """Nothing within range behind the person: the beams are free, the person is kept."""
     person = SimObject((12.0, 2.0), (-1.0, -0.2), t_start=2.0, stops=((6.0, 12.0),))
