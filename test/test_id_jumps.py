@@ -58,9 +58,11 @@ def test_a_report_beyond_what_max_accel_allows_from_the_shown_velocity_is_a_new_
     out, est, n = relabel_jumps(old, new, estimates([4, 9], [[3.0, 0.0], [2.3, 0.0]]), cfg)
     assert n == 1 and est.label.tolist() == [9, 20]
     assert out.mixture.label.tolist() == [20, 9]
-    # just inside the allowance from rest: kept; and max_accel 0 switches the check off
+    # just inside the allowance from rest: kept, just outside: a new object; and
+    # max_accel 0 switches the check off
     est = estimates([4], [[1.79, 0.0]])
     assert relabel_jumps(old, new, est, cfg)[2] == 0
+    assert relabel_jumps(old, new, estimates([4], [[1.81, 0.0]]), cfg)[2] == 1
     off = from_dict({'extraction': {'max_speed': 15.0, 'jump_slack': 1.0, 'max_accel': 0.0}})
     assert relabel_jumps(old, new, estimates([4], [[3.0, 0.0]]), off)[2] == 0
 

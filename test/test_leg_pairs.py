@@ -136,15 +136,16 @@ def test_two_tracked_legs_of_one_walker_become_one_track(pair_scans, mode):
     cfg = leg_config(pair_scans, mode)
     rng = np.random.default_rng(7)
     state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
-    shown, joined = [], 0
+    shown, joins = [], []
     for k in range(30):
         state, est, diag = filter_step(state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0)),
                                        0.1, cfg)
         shown.append(est.label.tolist())
-        joined += diag.joined_labels
+        joins.append(diag.joined_labels)
+    joined = sum(joins)
     if pair_scans:
-        # joined after three scans together, under the label reported longer
-        assert joined == 1
+        # joined in the third scan together, not before, under the label reported longer
+        assert joined == 1 and joins.index(1) == pair_scans - 1
         assert all(s == [3] for s in shown[3:])
         if mode == 'cphd':
             assert int(state.log_card.argmax()) == 1
