@@ -28,9 +28,9 @@ def test_hand_computed_points():
 
 
 def test_every_invalid_kind_is_masked_and_counted():
-    ranges = [np.nan, np.inf, -np.inf, 0.05, 12.0, 10.0, 5.0]
+    ranges = [np.nan, np.inf, -np.inf, 0.05, 12.0, 10.0, 5.0, np.inf]
     sp = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1))
-    assert sp.masked == {'nan': 1, 'pos_inf': 1, 'neg_inf': 1, 'below_min': 1, 'above_max': 2}
+    assert sp.masked == {'nan': 1, 'pos_inf': 2, 'neg_inf': 1, 'below_min': 1, 'above_max': 2}
     assert sp.beam.tolist() == [6]                    # range_max itself means "no return"
     np.testing.assert_allclose(sp.points, [[5 * math.cos(0.6), 5 * math.sin(0.6)]])
     inclusive = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1),
@@ -112,6 +112,32 @@ def test_angle_max_one_or_two_beams_off_is_taken():
 def test_more_than_a_full_turn_is_refused():
     with pytest.raises(ScanError, match='full turn'):
         scan_to_points(make_scan(np.ones(100), angle_min=0.0, inc=0.1, angle_max=9.9))
+    # at 1 degree: 361 beams (a full turn and the seam's beam twice) are taken, 362 not
+    inc = math.radians(1.0)
+    assert len(scan_to_points(make_scan(np.ones(361), angle_min=0.0, inc=inc)).points) == 361
+    with pytest.raises(ScanError, match='full turn'):
+        scan_to_points(make_scan(np.ones(362), angle_min=0.0, inc=inc))
+
+
+def test_the_sector_area_and_the_beam_clutter_density():
+    """The field of view's area is the sector's, 1/2 fov range_max^2, each beam counting its
+    own spacing; the per-beam clutter density integrates over the sector (polar area
+    element r dr dtheta, by the midpoint rule) to 1 - r0 / (2 range_max), r0 the 0.1 m
+    below which it is held."""
+    inc = math.radians(0.5)
+    sp = scan_to_points(make_scan(np.ones(361), angle_min=-math.pi / 2, inc=inc,
+                                  range_max=13.0))
+    fov = math.pi + inc
+    assert sp.fov == pytest.approx(fov, rel=1e-12)
+    assert sp.area == pytest.approx(0.5 * fov * 13.0 ** 2, rel=1e-12)
+    n_r, n_t = 20_000, 7
+    r = (np.arange(n_r) + 0.5) * (13.0 / n_r)
+    t = -math.pi / 2 - inc / 2 + (np.arange(n_t) + 0.5) * (fov / n_t)
+    rr, tt = np.meshgrid(r, t)
+    pts = np.column_stack([(rr * np.cos(tt)).ravel(), (rr * np.sin(tt)).ravel()])
+    c = np.exp(sp.beam_clutter_log_density(pts))
+    total = np.sum(c * rr.ravel()) * (13.0 / n_r) * (fov / n_t)
+    assert total == pytest.approx(1 - 0.1 / (2 * 13.0), abs=1e-6)
 
 
 def test_non_numeric_ranges_are_refused():
