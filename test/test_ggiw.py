@@ -12,7 +12,7 @@ GGIW single-object math against independent oracles (section 3 checks).
   points (the v -> infinity limit against the joint Gaussian); an expected centroid
   offset is a shifted measurement;
 - the CV model's noise is one acceleration held over the step (against integrating it);
-- the gate holds a cell anywhere on the outline of the expected extent.
+- the gate, widened by the extent, reaches three times a pedestrian's outline.
 """
 
 import numpy as np
@@ -305,12 +305,14 @@ def test_the_motion_noise_is_one_acceleration_held_over_the_step():
     np.testing.assert_allclose(out.P[0], np.cov(moved.T), atol=1e-2 * np.abs(out.P[0]).max())
 
 
-def test_the_gate_holds_a_cell_on_the_objects_outline():
-    """A cell may be one side of an object: its centroid on the outline of the expected
-    extent (the ellipse whose uniform fill has second moments X: semi-axes twice the
-    square roots of X's eigenvalues). With the default rho, sensor noise and gate
-    probability, a well-localised component's gate holds a cell centred anywhere on it,
-    and not one three times as far out (the 0.999 gate ends near twice)."""
+def test_the_gate_reaches_three_times_the_outline_of_a_well_localised_component():
+    """gate_pairs' gate is H P H^T + (1 + rho) X + R: the spread of one return (rho X + R;
+    at the default rho 1/4, rho X is the second moments of the filled outline) widened by
+    the extent itself. At s times the outline (the ellipse (p - c)' X^-1 (p - c) = 1 the
+    markers draw) d^2 is then about s^2 / (1 + rho), against s^2 / rho for the spread of
+    one return alone: with the default rho, sensor noise and gate probability (d^2 < 13.8)
+    a well-localised pedestrian's gate holds cells centred anywhere out to three times its
+    outline, where one return's spread alone ends near twice, and none at five times."""
     from extended_tracker.config import TrackerConfig
     from extended_tracker.ggiw import gate_pairs
     from extended_tracker.tracker import gate_threshold, sensor_noise
@@ -320,8 +322,8 @@ def test_the_gate_holds_a_cell_on_the_objects_outline():
     mix = one_component(200, X0, p_std=0.01)
     lam, U = np.linalg.eigh(X0)
     t = np.linspace(0, 2 * np.pi, 72, endpoint=False)
-    outline = (U @ (2 * np.sqrt(lam)[:, None] * np.array([np.cos(t), np.sin(t)]))).T
-    for scale, inside in ((1.0, True), (3.0, False)):
+    outline = (U @ (np.sqrt(lam)[:, None] * np.array([np.cos(t), np.sin(t)]))).T
+    for scale, inside in ((1.0, True), (3.0, True), (5.0, False)):
         pts = mix.m[0, :2] + scale * outline
         st = cell_stats(pts, [np.array([j]) for j in range(len(pts))])
         comp, cell = gate_pairs(mix, st, cfg.model.rho, sensor_noise(cfg),
