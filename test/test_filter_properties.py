@@ -596,3 +596,46 @@ def test_seeded_generator_restarts_like_a_new_one():
     thread.start()
     thread.join()
     assert np.array_equal(out['d'], np.random.default_rng(0).random(5))
+
+
+def test_extraction_reports_the_map_count_of_heaviest_labels_each_by_its_heaviest_part():
+    """CPHD: the MAP count of labels, heaviest first, none lighter than min_existence
+    (0.3); each reported at its heaviest component, with its label's weight."""
+    from extended_tracker.memo import evolve
+    from extended_tracker.tracker import extract
+
+    cfg = TrackerConfig()
+    k = 5
+    m = np.zeros((k, 4))
+    m[:, :2] = [[0.0, 0.0], [0.1, 0.0], [5.0, 0.0], [5.2, 0.0], [9.0, 0.0]]
+    P = np.tile(0.01 * np.eye(4), (k, 1, 1))
+    V = np.tile((20.0 - IW_OFFSET) * 0.04 * np.eye(2), (k, 1, 1))
+    mix = Mixture(np.array([0.6, 0.3, 0.3, 0.5, 0.25]), np.full(k, 10.0), np.ones(k), m, P,
+                  np.full(k, 20.0), V, np.array([1, 1, 2, 2, 3]))
+    log_card = np.full(cfg.model.n_max + 1, -np.inf)
+    log_card[3] = 0.0                                   # the MAP count: all three labels
+    est = extract(evolve(FilterState.initial(cfg), mixture=mix, log_card=log_card), cfg)
+    assert est.label.tolist() == [1, 2]                 # label 3 (0.25) is too light
+    np.testing.assert_allclose(est.m[:, :2], [[0.0, 0.0], [5.2, 0.0]])
+    np.testing.assert_allclose(est.existence, [0.9, 0.8])
+    log_card[3], log_card[1] = -np.inf, 0.0             # the MAP count: one
+    est = extract(evolve(FilterState.initial(cfg), mixture=mix, log_card=log_card), cfg)
+    assert est.label.tolist() == [1]
+
+
+def test_components_larger_than_any_object_or_lost_within_metres_are_dropped():
+    """reduction.max_semi_axis (4 m) and max_position_std (3 m): a little over either is
+    implausible, a little under is kept."""
+    from extended_tracker.tracker import _implausible
+
+    cfg = TrackerConfig()
+    k = 4
+    semi = np.array([3.6, 4.4, 0.3, 0.3])
+    std = np.array([0.1, 0.1, 2.7, 3.3])
+    P = np.zeros((k, 4, 4))
+    P[:, 0, 0] = P[:, 1, 1] = std ** 2
+    P[:, 2, 2] = P[:, 3, 3] = 0.1
+    V = (20.0 - IW_OFFSET) * semi[:, None, None] ** 2 * np.eye(2)
+    mix = Mixture(np.ones(k), np.full(k, 10.0), np.ones(k), np.zeros((k, 4)), P,
+                  np.full(k, 20.0), V, np.arange(k))
+    assert _implausible(mix, cfg).tolist() == [False, True, False, True]
