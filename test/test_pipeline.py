@@ -217,6 +217,22 @@ def test_reset_drops_tracks_background_and_frame_and_ids_continue():
     assert res.estimates.label.min() > old_max
 
 
+@pytest.mark.parametrize('warmup', [1.05, 1.55])
+def test_the_warm_up_lasts_background_warmup_seconds_of_scans(warmup):
+    """From the first scan (dt the default 0.1 s) the filter only predicts while the time
+    so far is at most background.warmup: 10 scans at 10 Hz for 1.05 s, 15 for 1.55 s;
+    the next scan tracks. (Off the scan grid: the time so far adds up 0.1 s steps, whose
+    rounding takes 15 of them past 1.5.)"""
+    cfg = from_dict({'background': {'enabled': True, 'warmup': warmup}})
+    state = PipelineState.initial(cfg)
+    flags = []
+    for s in scans(25):
+        state, res = step(state, s, cfg)
+        flags.append(res.diagnostics['warmup'])
+    n = int(warmup * 10)
+    assert flags == [1] * n + [0] * (25 - n)
+
+
 def test_mixed_bad_beams_do_not_disturb_the_rest():
     state = PipelineState.initial(CFG)
     for s in scans(30):
