@@ -21,6 +21,16 @@ def scans(n=30, seed=0):
     return [s for s, _ in simulate(tutorial_scene(), n / 10.0, seed=seed)]
 
 
+def step_results(cfg, n):
+    """The step results of a fresh pipeline over the first ``n`` scans."""
+    state = PipelineState.initial(cfg)
+    out = []
+    for s in scans(n):
+        state, res = step(state, s, cfg)
+        out.append(res)
+    return out
+
+
 def warm_state(k=20, cfg=CFG):
     state = PipelineState.initial(cfg)
     for s in scans(k):
@@ -36,13 +46,9 @@ def with_stamp(scan, ns):
 
 def test_deterministic_over_runs():
     def run():
-        st = PipelineState.initial(CFG)
-        out = []
-        for s in scans(40):
-            st, res = step(st, s, CFG)
-            out.append((res.estimates.label.tolist(), res.estimates.m.round(12).tolist(),
-                        res.cardinality.round(14).tolist(), res.diagnostics))
-        return out
+        return [(res.estimates.label.tolist(), res.estimates.m.round(12).tolist(),
+                 res.cardinality.round(14).tolist(), res.diagnostics)
+                for res in step_results(CFG, 40)]
     assert run() == run()
 
 
@@ -224,11 +230,7 @@ def test_the_warm_up_lasts_background_warmup_seconds_of_scans(warmup):
     the next scan tracks. (Off the scan grid: the time so far adds up 0.1 s steps, whose
     rounding takes 15 of them past 1.5.)"""
     cfg = from_dict({'background': {'enabled': True, 'warmup': warmup}})
-    state = PipelineState.initial(cfg)
-    flags = []
-    for s in scans(25):
-        state, res = step(state, s, cfg)
-        flags.append(res.diagnostics['warmup'])
+    flags = [res.diagnostics['warmup'] for res in step_results(cfg, 25)]
     n = int(warmup * 10)
     assert flags == [1] * n + [0] * (25 - n)
 
