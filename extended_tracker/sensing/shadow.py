@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..ggiw import einsum, inv2, IW_OFFSET, Mixture, quad_form2
+from ..ggiw import einsum, inv2, Mixture, quad_form2
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
@@ -354,11 +354,12 @@ def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
     step = abs(scan.angle_step)
     if det.model != 'scan_shadow' or det.min_fill <= 0.0 or n == 0 or not step > 0.0:
         return none
-    extent = births.V / (births.v - IW_OFFSET)[:, None, None]
+    as_mix = births.mixture(np.ones(n), np.zeros(n, dtype=np.int64))  # for E[X], E[gamma]
+    extent = as_mix.expected_extent()
     r = np.hypot(births.m[:, 0], births.m[:, 1])
     reach = np.sqrt(extent[:, 0, 0] + extent[:, 1, 1])
     widest = np.arcsin(np.minimum(reach / np.maximum(r, 1e-9), 1.0))   # half-angle bound
-    rate = births.alpha / births.beta
+    rate = as_mix.expected_rate()
     maybe = (_expects_too_few(rate, widest, step, det.min_fill) | (r < reach)).nonzero()[0]
     if not len(maybe):
         return none
