@@ -14,6 +14,8 @@ from extended_tracker.reduction import merge_components, reduce_mixture
 from extended_tracker.state import FilterState
 from extended_tracker.tracker import filter_step
 
+from mixtures import pedestrians
+
 CFG = TrackerConfig()
 
 
@@ -605,13 +607,8 @@ def test_extraction_reports_the_map_count_of_heaviest_labels_each_by_its_heavies
     from extended_tracker.tracker import extract
 
     cfg = TrackerConfig()
-    k = 5
-    m = np.zeros((k, 4))
-    m[:, :2] = [[0.0, 0.0], [0.1, 0.0], [5.0, 0.0], [5.2, 0.0], [9.0, 0.0]]
-    P = np.tile(0.01 * np.eye(4), (k, 1, 1))
-    V = np.tile((20.0 - IW_OFFSET) * 0.04 * np.eye(2), (k, 1, 1))
-    mix = Mixture(np.array([0.6, 0.3, 0.3, 0.5, 0.25]), np.full(k, 10.0), np.ones(k), m, P,
-                  np.full(k, 20.0), V, np.array([1, 1, 2, 2, 3]))
+    mix = pedestrians([(1, 0.6, 0.0, 0.0), (1, 0.3, 0.1, 0.0), (2, 0.3, 5.0, 0.0),
+                       (2, 0.5, 5.2, 0.0), (3, 0.25, 9.0, 0.0)])
     log_card = np.full(cfg.model.n_max + 1, -np.inf)
     log_card[3] = 0.0                                   # the MAP count: all three labels
     est = extract(evolve(FilterState.initial(cfg), mixture=mix, log_card=log_card), cfg)

@@ -6,7 +6,9 @@ import pytest
 from scipy import stats
 
 from extended_tracker.ggiw import IW_OFFSET, Mixture
-from extended_tracker.reduction import merge_groups
+from extended_tracker.reduction import merge_groups, reduce_mixture
+
+from mixtures import pedestrians
 
 D = 2
 
@@ -191,8 +193,6 @@ def test_components_of_zero_weight_go_even_with_prune_weight_zero():
     exactly 0; with ``reduction.prune_weight`` 0 they were kept, and two of one label,
     both at 0, merged to 0/0 (NaN everywhere after).
     """
-    from extended_tracker.reduction import reduce_mixture
-
     X = [extent(0.3, 0.2, 0.0)] * 3
     mix = mixture([0.0, 0.0, 0.7], [14.0, 14.0, 14.0], X)
     mix = Mixture(mix.w, mix.alpha, mix.beta, mix.m, mix.P, mix.v, mix.V,
@@ -202,28 +202,16 @@ def test_components_of_zero_weight_go_even_with_prune_weight_zero():
     assert out.label.tolist() == [5] and out.w.tolist() == [0.7] and capped == 0
 
 
-def placed(w, x, labels):
-    """Components of weights ``w`` at positions ``x`` (k, 2), position std 0.1 m, with
-    ``labels``."""
-    base = mixture(w, [14.0] * len(w), [extent(0.3, 0.2, 0.0)] * len(w))
-    m = np.zeros((len(w), 4))
-    m[:, :2] = x
-    return Mixture(base.w, base.alpha, base.beta, m, base.P, base.v, base.V,
-                   np.asarray(labels, dtype=np.int64))
-
-
 def test_a_label_merges_what_lies_within_merge_distance_of_its_heaviest_and_keeps_the_rest():
     """Squared Mahalanobis distance in the heaviest component's position covariance
-    (0.01 m^2 here, merge_distance 4): a member 0.15 m away (2.25) merges, one 0.25 m
+    (0.05 m std here, merge_distance 4): a member 0.075 m away (2.25) merges, one 0.125 m
     away (6.25) stays apart, whether the label's members are all near (one pass) or not
     (the greedy loop); other labels are never merged in."""
-    from extended_tracker.reduction import reduce_mixture
-
-    near = placed([0.6, 0.3], [[0.0, 0.0], [0.15, 0.0]], [4, 4])
+    near = pedestrians([(4, 0.6, 0.0, 0.0), (4, 0.3, 0.075, 0.0)])
     out, _ = reduce_mixture(near, 1e-6, 4.0, 100)
     assert len(out) == 1 and out.w[0] == pytest.approx(0.9)
-    mixed = placed([0.6, 0.3, 0.2, 0.5], [[0.0, 0.0], [0.15, 0.0], [0.0, 0.25], [0.1, 0.0]],
-                   [4, 4, 4, 7])
+    mixed = pedestrians([(4, 0.6, 0.0, 0.0), (4, 0.3, 0.075, 0.0), (4, 0.2, 0.0, 0.125),
+                         (7, 0.5, 0.05, 0.0)])
     out, _ = reduce_mixture(mixed, 1e-6, 4.0, 100)
     assert sorted(zip(out.label.tolist(), np.round(out.w, 9).tolist())) == \
         [(4, 0.2), (4, 0.9), (7, 0.5)]
@@ -233,19 +221,15 @@ def test_a_member_under_a_hundredth_of_its_head_is_absorbed_a_heavier_one_moment
     """Within merge distance, a member under 1 % of its label's heaviest weight adds its
     weight and leaves the head as it was; a heavier one moves the merged mean to the
     weighted mean."""
-    from extended_tracker.reduction import reduce_mixture
-
-    for w_member, mean in ((0.005, 0.0), (0.05, 0.05 * 0.1 / 1.05)):
-        out, _ = reduce_mixture(placed([1.0, w_member], [[0.0, 0.0], [0.1, 0.0]], [4, 4]),
+    for w_member, mean in ((0.005, 0.0), (0.05, 0.05 * 0.05 / 1.05)):
+        out, _ = reduce_mixture(pedestrians([(4, 1.0, 0.0, 0.0), (4, w_member, 0.05, 0.0)]),
                                 1e-6, 4.0, 100)
         assert len(out) == 1 and out.w[0] == pytest.approx(1.0 + w_member, rel=1e-12)
         assert out.m[0, 0] == pytest.approx(mean, abs=1e-12)
 
 
 def test_the_component_cap_keeps_the_heaviest():
-    from extended_tracker.reduction import reduce_mixture
-
-    mix = placed([0.2, 0.9, 0.4, 0.7, 0.1], [[float(i), 0.0] for i in range(5)],
-                 [1, 2, 3, 4, 5])
+    mix = pedestrians([(i + 1, w, float(i), 0.0) for i, w in
+                       enumerate([0.2, 0.9, 0.4, 0.7, 0.1])])
     out, capped = reduce_mixture(mix, 1e-6, 4.0, 3)
     assert capped == 2 and sorted(out.label.tolist()) == [2, 3, 4]
