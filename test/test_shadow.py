@@ -395,11 +395,22 @@ def test_visible_fraction_matches_a_per_component_loop(k, halves):
     bearing[out] = np.where(rng.random(out.sum()) < 0.5, sp.angle_lo, sp.angle_hi) \
         + rng.uniform(-0.3, 0.3, out.sum())
     half = rng.choice(halves, k)
+    order = np.argsort(sp.angles, kind='stable')
+    ang, rg = sp.angles[order], sp.ranges[order]
+    # intervals that end exactly on a beam's angle, at one end or the other (the interval
+    # is closed): centred on beam i, half as wide as the way to beam j, a difference that
+    # is exact in floating point where the two angles lie within a factor of two
+    i = rng.integers(len(ang) // 2 + 50, len(ang) - 50, k // 4)
+    j = i + rng.choice([-1, 1], len(i)) * rng.integers(1, 40, len(i))
+    assert np.all((ang[j] / ang[i] >= 0.5) & (ang[j] / ang[i] <= 2.0))
+    on_beam = np.abs(ang[j] - ang[i])
+    assert np.all((ang[i] + on_beam == ang[j]) | (ang[i] - on_beam == ang[j]))
+    bearing = np.concatenate([bearing, ang[i]])
+    half = np.concatenate([half, on_beam])
+    k += len(i)
     r_near = rng.uniform(0.5, 10.0, k)
     margin = 0.3
     frac, shift = _visible_fraction(bearing, half, r_near, sp, sp.ranges, margin)
-    order = np.argsort(sp.angles, kind='stable')
-    ang, rg = sp.angles[order], sp.ranges[order]
     half_step = abs(sp.angle_step) / 2
     for i in range(k):
         inside = np.flatnonzero((ang >= bearing[i] - half[i]) & (ang <= bearing[i] + half[i]))
@@ -423,7 +434,7 @@ def test_visible_fraction_matches_a_per_component_loop(k, halves):
         if sp.angle_lo <= lo_edge and hi_edge <= sp.angle_hi and len(free) == len(inside):
             assert frac[i] == 1.0 and shift[i] == 0.0         # exactly, not to rounding
     if k > 100:                   # centres outside the field of view, seen in part, are there
-        assert np.count_nonzero(out & (frac > 0)) >= 20
+        assert np.count_nonzero(out & (frac[:len(out)] > 0)) >= 20
 
 
 TURN = 2 * np.pi / 360                                  # one beam of a 360-beam scanner
