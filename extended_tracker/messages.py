@@ -91,10 +91,10 @@ def id_rgba(label: int) -> dict:
     return {'r': float(r), 'g': float(g), 'b': float(b), 'a': 1.0}
 
 
-def _pose(x=0.0, y=0.0, z=0.0, yaw=0.0) -> dict:
+def _pose(x=0.0, y=0.0, z=0.0) -> dict:
+    """A position with the identity orientation (outlines and arrows are drawn in points)."""
     return {'position': {'x': float(x), 'y': float(y), 'z': float(z)},
-            'orientation': {'x': 0.0, 'y': 0.0, 'z': float(math.sin(yaw / 2)),
-                            'w': float(math.cos(yaw / 2))}}
+            'orientation': {'x': 0.0, 'y': 0.0, 'z': 0.0, 'w': 1.0}}
 
 
 def _marker(header, ns, mid, mtype, action, **kw) -> dict:

@@ -1,4 +1,5 @@
-"""Marker outlines: the ellipse, and the rectangle cars and bicycles are drawn as."""
+"""What is published: marker outlines (the ellipse, and the rectangle cars and bicycles are
+drawn as), the other markers, and the fields of ExtendedObjectArray."""
 
 import math
 
@@ -7,8 +8,8 @@ import pytest
 
 from extended_tracker.config import TrackerConfig
 from extended_tracker.messages import (
-    ELLIPSE_SEGMENTS, LINE_STRIP, markers_data, outline_xy, SHAPE_ELLIPSE, SHAPE_RECTANGLE,
-    shapes, tracks_data,
+    ELLIPSE_SEGMENTS, id_rgba, LINE_STRIP, markers_data, outline_xy, SHAPE_ELLIPSE,
+    SHAPE_RECTANGLE, shapes, tracks_data,
 )
 from extended_tracker.pipeline import StepResult
 from extended_tracker.state import Estimates
@@ -81,3 +82,73 @@ def test_cars_are_drawn_as_rectangles_and_people_as_ellipses():
                                                     SHAPE_RECTANGLE]
     assert msg['objects'][0]['length'] == pytest.approx(math.sqrt(3) * 2.2)
     assert msg['objects'][0]['width'] == pytest.approx(math.sqrt(3) * 0.9)
+
+
+def test_the_messages_carry_every_field_of_the_estimates():
+    """Field by field, ExtendedObjectArray and the markers against estimates built from
+    known values: semi-axes and yaw (the extent is made from them), a covariance whose
+    position block differs from its velocity block, a velocity whose components differ."""
+    rows = [(7, 1.5, -2.0, 0.30, 0.20, 0.4), (12, -3.0, 4.0, 2.2, 0.9, -1.1),
+            (30, 6.0, 0.5, 0.9, 0.2, 1.3)]
+    est = estimates(rows)
+    est.existence[:] = 0.9, 0.55, 1.0
+    est.m[:, 2:] = [[0.5, -1.25], [8.0, 3.0], [-4.0, 0.75]]
+    for j in range(3):
+        A = np.arange(16.0).reshape(4, 4) * 0.01 * (j + 1)
+        est.P[j] = A @ A.T + np.diag([0.04, 0.09, 0.5, 0.7])
+    est.rate[:] = 12.0, 4.5, 30.0
+    est.num_detections[:] = 9, 0, 25
+    est.visibility[:] = 1.2, 0.4, -0.1            # rounding past [0, 1] is clipped
+    cfg = TrackerConfig()
+    res = StepResult(1_700_000_000_123_456_789, 'laser', est, np.array([0.1, 0.2, 0.7]), 2.6,
+                     np.zeros((0, 2)), np.zeros((0, 2)), {'detections': 57, 'cells': 12},
+                     processing_time=0.0042)
+    msg = tracks_data(res, cfg)
+    assert msg['header'] == {'stamp': {'sec': 1_700_000_000, 'nanosec': 123_456_789},
+                             'frame_id': 'laser'}
+    assert (msg['expected_count'], msg['num_detections'], msg['processing_time']) == (
+        2.6, 57, 0.0042)
+    np.testing.assert_array_equal(msg['cardinality'], [0.1, 0.2, 0.7])
+    for j, (o, (lab, x, y, a, b, yaw)) in enumerate(zip(msg['objects'], rows)):
+        assert o['id'] == lab and o['existence'] == est.existence[j]
+        assert o['position'] == {'x': x, 'y': y, 'z': 0.0}
+        assert o['velocity'] == {'x': est.m[j, 2], 'y': est.m[j, 3], 'z': 0.0}
+        np.testing.assert_array_equal(o['position_covariance'], est.P[j, :2, :2].ravel())
+        np.testing.assert_array_equal(o['extent'], est.X[j].ravel())
+        assert o['semi_major'] == pytest.approx(a) and o['semi_minor'] == pytest.approx(b)
+        assert o['orientation'] == pytest.approx(yaw)
+        assert o['length'] == pytest.approx(math.sqrt(3) * a)
+        assert o['width'] == pytest.approx(math.sqrt(3) * b)
+        assert o['measurement_rate'] == est.rate[j]
+        assert o['num_detections'] == est.num_detections[j]
+    assert [o['visibility'] for o in msg['objects']] == [1.0, 0.4, 0.0]
+
+    data, _ = markers_data(res, cfg)
+    by = {(mk['ns'], mk['id']): mk for mk in data['markers']}
+    for j, (lab, x, y, *_) in enumerate(rows):
+        text, arrow = by['label', lab], by['velocity', lab]
+        assert text['text'] == str(lab) and text['scale']['z'] > 0      # a visible height
+        assert text['pose'] == {'position': {'x': x, 'y': y, 'z': 0.5},
+                                'orientation': {'x': 0.0, 'y': 0.0, 'z': 0.0, 'w': 1.0}}
+        # the arrow spans one second of motion from the centre
+        assert arrow['points'] == [{'x': x, 'y': y, 'z': 0.0},
+                                   {'x': x + est.m[j, 2], 'y': y + est.m[j, 3], 'z': 0.0}]
+        assert arrow['scale']['x'] > 0 and arrow['scale']['y'] > 0
+        assert by['outline', lab]['color'] == text['color'] == arrow['color']
+        assert text['color']['a'] == 1.0
+    # each id its own colour, over the first hundred ids
+    colours = {tuple(id_rgba(lab).values()) for lab in range(1, 101)}
+    assert len(colours) == 100
+
+
+@pytest.mark.parametrize('a, b, want', [
+    (1.2 / math.sqrt(3) * 1.001, 1.2 / math.sqrt(3), SHAPE_RECTANGLE),   # long enough
+    (1.2 / math.sqrt(3) * 0.999, 1.2 / math.sqrt(3) * 0.9, SHAPE_ELLIPSE),
+    (0.6 / math.sqrt(3) * 1.001, 0.6 / math.sqrt(3) / 2.5, SHAPE_RECTANGLE),  # half as long,
+    (0.6 / math.sqrt(3) * 1.001, 0.6 / math.sqrt(3) / 2.4, SHAPE_ELLIPSE),    # elongated
+    (0.6 / math.sqrt(3) * 0.999, 0.6 / math.sqrt(3) / 3.0, SHAPE_ELLIPSE),
+])
+def test_the_rectangle_thresholds(a, b, want):
+    """Rectangles from ``rectangle_length`` (1.2 m) of second-moment length, or from half
+    of it with semi-axes at least ``rectangle_elongation`` (2.5) to one."""
+    assert shapes(estimates([(1, 0.0, 0.0, a, b, 0.3)]), TrackerConfig().extraction) == [want]
