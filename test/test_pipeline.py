@@ -230,9 +230,14 @@ def test_the_warm_up_lasts_background_warmup_seconds_of_scans(warmup):
     the next scan tracks. (Off the scan grid: the time so far adds up 0.1 s steps, whose
     rounding takes 15 of them past 1.5.)"""
     cfg = from_dict({'background': {'enabled': True, 'warmup': warmup}})
-    flags = [res.diagnostics['warmup'] for res in step_results(cfg, 25)]
+    results = step_results(cfg, 25)
+    flags = [res.diagnostics['warmup'] for res in results]
     n = int(warmup * 10)
     assert flags == [1] * n + [0] * (25 - n)
+    # meanwhile every return is reported as background, none as a detection
+    for res in results[:n]:
+        assert len(res.points) == 0
+        assert len(res.background_points) == res.diagnostics['detections'] > 0
 
 
 def test_mixed_bad_beams_do_not_disturb_the_rest():
@@ -370,3 +375,38 @@ def test_any_config_in_range_runs_without_nan_or_raising():
                     assert not np.isnan(a).any()
 
     run()
+
+
+def test_when_two_events_meet_the_restart_outranks_and_both_are_said():
+    """A scan can be two things at once. A restart (a gap, time going back) outranks a
+    zero stamp and an unexplained scan; an unexplained scan outranks a zero stamp; the
+    error gives both reasons, the first event's first."""
+    state = warm_state()
+    few = from_dict({'background': {'enabled': False}, 'model': {'n_max': 2}})
+    nxt = scans(21)[-1]
+    last = state.last_stamp_ns
+    # a zero stamp arriving after a gap: a time gap
+    _, res = step(state, with_stamp(nxt, 0), CFG, arrival_ns=last + int(5e9))
+    assert res.event == 'time_gap' and 'timing.max_gap' in res.error
+    # a zero stamp on a scan no partition explains: unexplained, and why the stamp is odd
+    _, res = step(state, with_stamp(nxt, 0), few, arrival_ns=last + 100_000_000)
+    assert res.event == 'unexplained_scan'
+    assert res.error.index('arrival time') < res.error.index('model.n_max = 2')
+    # a restart whose scan no partition explains: the restart, with both reasons
+    for ns, event, why in ((last + int(5e9), 'time_gap', 'timing.max_gap'),
+                           (last - int(1e9), 'time_backwards', 'tracks restarted')):
+        _, res = step(state, with_stamp(nxt, ns), few)
+        assert res.event == event and res.diagnostics['unexplained'] == 1
+        assert res.error.index(why) < res.error.index('model.n_max = 2')
+
+
+def test_a_reset_keeps_the_last_stamp():
+    """After ``reset`` a scan with the last stamp is still not used again, and an older
+    one is still time going backwards: the reset drops the tracks, not the clock."""
+    state = warm_state()
+    fresh = reset(state, CFG)
+    nxt = scans(21)[-1]
+    _, res = step(fresh, with_stamp(nxt, state.last_stamp_ns), CFG)
+    assert res.event == 'repeated_stamp'
+    _, res = step(fresh, with_stamp(nxt, state.last_stamp_ns - 100_000_000), CFG)
+    assert res.event == 'time_backwards'
