@@ -640,3 +640,41 @@ def test_beams_near_tracks_in_one_pass_as_with_the_plain_distance(seed):
     prot, near = beams_near_tracks(sp, centres, radius, 0.5, guard)
     assert np.array_equal(prot, plain(centres[guard], radius[guard]))
     assert np.array_equal(near, plain(centres, radius))
+
+
+def test_a_car_that_parks_is_learned_only_people_sized_tracks_protect():
+    """A car drives in and parks: its track moved, but it is far larger than a person
+    (``protect_semi_axis``), so its returns are learned like a wall's once it stands
+    still, and nothing is reported from two seconds after it stopped. Were every moving
+    track to protect its returns, the parked car would be tracked to the end."""
+    car = SimObject((12.0, 3.0), (-2.0, 0.0), shape='rectangle', a=4.5, b=1.8, kind='car',
+                    stops=((3.0, 60.0),))
+    for semi, parked in ((0.6, 0), (100.0, 1)):
+        cfg = from_dict({'background': {'protect_semi_axis': semi}})
+        hist = run(Scene((car,), laser=LaserSpec()), 12.0, cfg, seed=2)
+        assert any(len(res.estimates) for _, res in hist[20:30])       # tracked while driving
+        assert all(len(res.estimates) >= parked for _, res in hist[50:]), semi
+        if not parked:
+            assert all(len(res.estimates) == 0 and res.diagnostics['background_dropped'] > 0
+                       for _, res in hist[50:])
+
+
+def test_the_region_birth_of_a_scan_is_never_absorbed():
+    """
+    A birth region on the box that the chair reveals: in the scans where the box's beams
+    are learned and its tracks absorbed, the region's birth of that very scan is not among
+    them (it is no track that stood on those returns), and is in the posterior.
+    """
+    wall = (((8.0, -5.0), (8.0, 5.0)),)
+    chair = SimObject((1.5, 0.0), a=0.3, b=0.3, kind='chair', t_end=4.0)
+    box = SimObject((3.5, 0.0), a=0.3, b=0.3, kind='box')
+    cfg = from_dict({'birth': {'regions': [3.5, 0.0, 0.3]}})
+    state = PipelineState.initial(cfg)
+    absorbed = 0
+    for scan, _ in simulate(Scene((chair, box), walls=wall, laser=LaserSpec()), 6.0, seed=5):
+        first_new = state.filter.next_label
+        state, res = step(state, scan, cfg)
+        if res.diagnostics['absorbed']:
+            absorbed += 1
+            assert first_new in state.filter.mixture.label
+    assert absorbed >= 2

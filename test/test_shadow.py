@@ -990,3 +990,24 @@ def test_partitions_that_repeat_once_lonely_cells_are_returns_are_dropped(monkey
     lonely[:] = False                                   # nothing lonely: only the repeat
     kept = tracker._distinct_with_lonely(parts, cells, size, lonely, 5)
     assert [p.tolist() for p in kept] == [[0, 3, 5], [1, 2, 3, 5], [4, 5]]
+
+
+def test_a_track_that_left_the_field_of_view_is_dropped_and_counted():
+    """Components wholly behind a 180 deg scanner, or beyond its range, can never be seen
+    again: the pipeline drops them and counts them (``left_view``), and no other. One
+    beyond the range that would also be sparse (it expects 0.2 returns) counts as having
+    left, not as sparse."""
+    cfg = from_dict({'background': {'enabled': False}})
+    far = component_at(5.0, 0.0)
+    behind = evolve(component_at(-3.0, 0.5), label=np.array([2]))
+    beyond = evolve(with_rate(component_at(9.55, 9.55), 0.2), label=np.array([3]))
+    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
+                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
+    assert detection_model(beyond, scan_to_points(scan), cfg).sparse[0]
+    card = np.full(cfg.model.n_max + 1, -np.inf)
+    card[3] = 0.0
+    state, res = step(pipeline_with(Mixture.concat([far, behind, beyond]), cfg, card), scan,
+                      cfg)
+    assert res.diagnostics['left_view'] == 2
+    assert res.diagnostics['at_sensor'] == res.diagnostics['sparse'] == 0
+    assert set(state.filter.mixture.label.tolist()) == {1}
