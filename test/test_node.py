@@ -235,7 +235,7 @@ def test_diagnostics_give_each_scan_its_figures_and_the_event_counts(harness):
     assert int(values['objects']) == len(reply.objects) >= 2
     assert int(values['scans']) == 12 and int(values['beams']) == 361
     assert int(values['detections']) == int(np.isfinite(data[11][0].ranges).sum())
-    assert float(values['processing_time_ms']) > 0
+    assert float(values['processing_time_ms']) == round(reply.processing_time * 1e3, 3) > 0
     assert not [k for k in values if k.startswith('count_')]
     bad = ros_scan(data[12][0])
     bad.angle_increment = 0.0
@@ -310,10 +310,11 @@ def test_a_failure_to_build_the_messages_is_counted_and_survived(harness, monkey
 
 def test_a_node_that_cannot_keep_up_says_so(harness, monkeypatch):
     """Scans 0.1 s apart, each taking 0.12 s: after ten in a row the node logs and counts
-    falling_behind (in the diagnostics too); at its normal pace it never does."""
+    falling_behind (in the diagnostics too), and again after ten more; at its normal pace
+    it never does."""
     import extended_tracker.ros.node as node_mod
 
-    data = simulate(tutorial_scene(), 2.5, seed=0)
+    data = simulate(tutorial_scene(), 4.0, seed=0)
     for scan, _ in data[:5]:
         harness.send(ros_scan(scan))
     assert harness.node.counts == {}
@@ -331,10 +332,16 @@ def test_a_node_that_cannot_keep_up_says_so(harness, monkeypatch):
     assert harness.node.counts == {'falling_behind': 1}
     values = {kv.key: kv.value for kv in harness.diagnostics[-1].status[0].values}
     assert values['count_falling_behind'] == '1'
-    monkeypatch.setattr(node_mod, 'step', real_step)
-    for scan, _ in data[15:]:
+    # the run starts again: ten more slow scans in a row are the second time
+    for scan, _ in data[15:24]:
         harness.send(ros_scan(scan))
     assert harness.node.counts == {'falling_behind': 1}
+    harness.send(ros_scan(data[24][0]))
+    assert harness.node.counts == {'falling_behind': 2}
+    monkeypatch.setattr(node_mod, 'step', real_step)
+    for scan, _ in data[25:]:
+        harness.send(ros_scan(scan))
+    assert harness.node.counts == {'falling_behind': 2}
 
 
 def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
@@ -385,6 +392,11 @@ def test_parameters_from_the_yaml_file_and_descriptors():
         d = h.node.describe_parameters(['model.rho'])[0]
         assert 'rho X + R' in d.description
         assert d.floating_point_range[0].to_value == 4.0
+        mode, n_max = h.node.describe_parameters(['model.mode', 'model.n_max'])
+        assert mode.description.endswith('; one of cphd, phd')
+        assert not mode.integer_range and not mode.floating_point_range
+        assert n_max.description.endswith('[objects]')
+        assert (n_max.integer_range[0].from_value, n_max.integer_range[0].to_value) == (1, 200)
     finally:
         h.close()
 
@@ -611,8 +623,9 @@ def _node_until_it_ends(*ros_args, ros=True):
                           env=dict(os.environ))
 
 
-def test_node_help_prints_its_usage_without_starting():
-    done = _node_until_it_ends('--help', ros=False)
+@pytest.mark.parametrize('flag', ['--help', '-h'])
+def test_node_help_prints_its_usage_without_starting(flag):
+    done = _node_until_it_ends(flag, ros=False)
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith('usage: tracker_node [--ros-args')
     for name in ('scan (sensor_msgs/LaserScan)', 'tracks/markers', 'tracks/diagnostics',
@@ -825,3 +838,75 @@ def test_shutdown_after_a_signal_already_shut_the_context(monkeypatch):
     monkeypatch.setattr(rclpy, 'ok', lambda *a, **k: True)
     with pytest.raises(RuntimeError, match='already called'):
         node_mod._shutdown()
+
+
+class RecordingLogger:
+    """Stands in for the node's logger: each call as (level, text, keyword arguments)."""
+
+    def __init__(self):
+        self.lines = []
+
+    def __getattr__(self, level):
+        def log(text, **kwargs):
+            self.lines.append((level, text, kwargs))
+            return True
+        return log
+
+    def at(self, level):
+        return [(text, kwargs) for lev, text, kwargs in self.lines if lev == level]
+
+
+def test_an_event_is_logged_once_then_summarised_and_a_bug_at_error(harness, monkeypatch):
+    """The first of a kind in full with what follows, the later ones throttled to one
+    line every 10 s with the running count; a failure to publish, a bug, at ERROR."""
+    import extended_tracker.ros.node as node_mod
+
+    rec = RecordingLogger()
+    monkeypatch.setattr(harness.node, 'get_logger', lambda: rec)
+    data = simulate(tutorial_scene(), 0.5, seed=0)
+    bad = ros_scan(data[0][0])
+    bad.angle_increment = 0.0
+    for _ in range(3):
+        harness.send(bad)
+    (first, kw1), (second, kw2), (third, kw3) = rec.at('warning')
+    assert first.startswith('malformed_scan: ') and kw1 == {}
+    assert first.endswith('(counted; further ones are summarised every 10 s)')
+    assert second.startswith('malformed_scan: 2 so far; last: ')
+    assert third.startswith('malformed_scan: 3 so far; last: ')
+    assert kw2 == kw3 == {'throttle_duration_sec': 10.0}
+    assert rec.at('error') == []
+    fail_on_call(monkeypatch, node_mod, 'markers_data', 1, ValueError('a bug'))
+    harness.expect_markers = False                        # that scan gets none
+    harness.send(ros_scan(data[1][0]))
+    (text, _), = rec.at('error')
+    assert text.startswith("internal_error: publishing the estimates failed: ValueError('a bug')")
+
+
+def test_a_failure_on_a_zero_stamped_scan_is_answered_at_its_arrival(harness, monkeypatch):
+    """The previous estimates published for a scan the pipeline failed on carry the time
+    that scan is taken at: for a zero stamp, its arrival."""
+    import extended_tracker.ros.node as node_mod
+
+    data = simulate(tutorial_scene(), 0.5, seed=0)
+    for scan, _ in data[:3]:
+        harness.send(ros_scan(scan))
+    fail_on_call(monkeypatch, node_mod, 'step', 1, RuntimeError('a bug'))
+    msg = ros_scan(data[3][0])
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+    before = time.time_ns()
+    out = harness.send(msg)
+    assert before <= out.header.stamp.sec * 10**9 + out.header.stamp.nanosec <= time.time_ns()
+    assert harness.node.counts == {'internal_error': 1}
+
+
+def test_unknown_parameters_are_named_with_the_nearest_known_one(monkeypatch):
+    """The start-up warning says what each unknown name was probably meant to be."""
+    import extended_tracker.ros.node as node_mod
+
+    rec = RecordingLogger()
+    monkeypatch.setattr(node_mod.TrackerNode, 'get_logger', lambda self: rec)
+    with NodeHarness(dict(NO_BACKGROUND, **{'model.clutter_rte': 2.0, 'zz': 1.0})):
+        pass
+    (text, _), = rec.at('warning')
+    assert text == ('2 given parameter(s) this node does not have, ignored: '
+                    'model.clutter_rte (did you mean model.clutter_rate?), zz')
