@@ -22,7 +22,7 @@ def sim_scans(seconds=2.0, seed=0):
 
 
 def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0, zero_stamps=False,
-               compression=None):
+               compression=None, edit=None):
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
     store = message_typestore()
@@ -32,11 +32,13 @@ def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0, zero_sta
         writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
     with writer as w:
         conns = [w.add_connection(t, SCAN_TYPE, typestore=store) for t in topics]
-        for scan in sim_scans(seconds):
+        for k, scan in enumerate(sim_scans(seconds)):
             ns = scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
             data = scan_data(scan)
             if zero_stamps:                      # a driver that leaves the stamp unset
                 data['header']['stamp'] = {'sec': 0, 'nanosec': 0}
+            if edit:                             # edit(k, data): change the k-th scan
+                edit(k, data)
             raw = store.serialize_cdr(build_message(store, SCAN_TYPE, data), SCAN_TYPE)
             for c in conns:
                 w.write(c, ns, raw)
@@ -786,3 +788,75 @@ def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
     assert '1 of 3 not replayed' in captured.err
     assert (tmp_path / 'out' / 'c_plain.png').is_file()
     assert not (tmp_path / 'out' / 'a_notes_tracks').exists()
+
+
+def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
+    """Every figure of the summary against the step results of the replay, recomputed
+    here: the times set to 1, 2, ... ms scan by scan (median and p99 known), and two
+    events of one kind whose reasons differ (the first is kept)."""
+    import extended_tracker.replay as rp
+
+    real, seen = rp.step, []
+
+    def step(*args, **kwargs):
+        state, res = real(*args, **kwargs)
+        seen.append(res)
+        res.processing_time = len(seen) * 1e-3
+        if len(seen) in (5, 9):
+            res.event, res.error = 'time_gap', f'reason {len(seen)}'
+        return state, res
+
+    monkeypatch.setattr(rp, 'step', step)
+    write_ros2(tmp_path / 'in', seconds=6.0)
+    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    n = len(seen)
+    counts = [len(r.estimates) for r in seen]
+    first, travel = {}, {}
+    for r in seen:
+        for lab, xy in zip(r.estimates.label.tolist(), r.estimates.m[:, :2]):
+            first.setdefault(lab, xy)
+            travel[lab] = max(travel.get(lab, 0.0), float(np.hypot(*(xy - first[lab]))))
+    assert s.scans == n == 60
+    assert s.valid_detections == sum(r.diagnostics['detections'] for r in seen)
+    assert s.distinct_ids == len(travel) >= 3
+    assert s.moving_ids == sum(v > 1.0 for v in travel.values()) >= 1
+    assert s.mean_count == pytest.approx(sum(counts) / n)
+    assert s.max_count == max(counts) > min(counts)
+    assert s.median_ms == pytest.approx((n + 1) / 2)
+    assert s.p99_ms == pytest.approx(1 + 0.99 * (n - 1))
+    assert s.events == {'time_gap': 2} and s.first_reasons == {'time_gap': 'reason 5'}
+
+
+def test_the_plot_shows_the_field_of_view_of_the_first_readable_scan(tmp_path, monkeypatch):
+    """The sector drawn is that of the scans: from angle_min to its last beam (not one
+    beyond), out to range_max, taken from the first scan that is not malformed."""
+    import extended_tracker.plotting as plotting
+
+    drawn = {}
+    monkeypatch.setattr(plotting, 'plot_run', lambda sketch, path, title='', fov=None:
+                        drawn.setdefault('fov', fov))
+
+    def malformed_first(k, data):
+        if k == 0:
+            data['angle_increment'] = 0.0
+
+    write_ros2(tmp_path / 'in', edit=malformed_first)
+    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, plot_path=tmp_path / 'run.png',
+               progress=False)
+    assert s.events == {'malformed_scan': 1}
+    scan = sim_scans(0.1)[0]
+    last = scan.angle_min + scan.angle_increment * (len(scan.ranges) - 1)
+    assert drawn['fov'] == pytest.approx((scan.angle_min, last, scan.range_max))
+    assert last == pytest.approx(np.pi / 2)
+
+
+def test_fov_and_frame_names_at_their_edges():
+    from extended_tracker.replay import _fov, ros2_frame_id
+
+    scan = sim_scans(0.1)[0]
+    scan.range_max = float('inf')            # no range to draw the sector out to
+    assert _fov(scan) is None
+    scan.range_max, scan.angle_increment = 5.0, -scan.angle_increment   # clockwise beams
+    assert _fov(scan) == pytest.approx((-1.5 * np.pi, -np.pi / 2, 5.0))
+    assert [ros2_frame_id(f) for f in ('/laser', '//base/laser', 'laser', '/')] == [
+        'laser', 'base/laser', 'laser', '/']
