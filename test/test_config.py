@@ -12,17 +12,22 @@ from extended_tracker.errors import ConfigError
 @pytest.mark.parametrize('flat, message', [
     ({'model.rho': 0.0}, 'model.rho must be > 0.0, got 0.0'),
     ({'model.n_max': 500}, 'model.n_max must be <= 200 objects, got 500'),
+    ({'model.n_max': 201}, 'model.n_max must be <= 200 objects, got 201'),
+    ({'model.n_max': True}, 'model.n_max must be an integer, got True'),
     ({'partition.d_max': -1.0}, 'partition.d_max must be > 0.0 m, got -1.0'),
     ({'model.mode': 'x'}, "model.mode must be one of ('cphd', 'phd'), got 'x'"),
     ({'background.enabled': 'yes'}, 'background.enabled must be true or false'),
+    ({'background.enabled': 1}, 'background.enabled must be true or false, got 1'),
     ({'birth.regions': [1.0, 2.0]}, 'x, y, std triples'),
     ({'model.n_max': 2.5}, 'model.n_max must be an integer'),
     ({'model.sigma_accel': float('nan')}, 'must be finite'),
+    ({'model.sigma_accel': float('inf')}, 'model.sigma_accel must be finite, got inf'),
     ({'partition.d_min': 0.9, 'partition.d_max': 0.5}, 'd_min (0.9) must not exceed'),
     ({'model.rho': '0.25'}, "model.rho must be a number, got '0.25'"),
     ({'model.rho': True}, 'model.rho must be a number, got True'),
     ({'birth.regions': [1.0, 'a', 2.0]}, 'birth.regions must be a list of finite numbers'),
     ({'birth.regions': 3.0}, 'birth.regions must be a list of finite numbers'),
+    ({'birth.regions': [1.0, 2.0, float('inf')]}, 'birth.regions must be a list of finite'),
 ])
 def test_bad_values_are_refused_with_the_reason(flat, message):
     with pytest.raises(ConfigError) as err:
