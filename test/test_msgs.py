@@ -145,3 +145,38 @@ def test_rosbags_custom_type_and_cdr_compatibility(tmp_path):
 @pytest.mark.parametrize('name', ['ExtendedObject', 'ExtendedObjectArray'])
 def test_msg_files_exist(name):
     assert (MSG_DIR / f'{name}.msg').is_file()
+
+
+def test_build_message_fills_defaults_converts_values_and_refuses_unknown_fields():
+    """rosbags messages from plain data: a field left out takes its type's default (a
+    fixed array its length of zeros), numpy scalars become the plain Python values the
+    CDR writer takes, and a misspelt field is an error, not a silent default."""
+    from extended_tracker.bagio import BagError, build_message, message_typestore, SCAN_TYPE
+
+    store = message_typestore()
+    obj = build_message(store, 'extended_tracker_msgs/msg/ExtendedObject', {'id': np.uint64(7)})
+    np.testing.assert_array_equal(obj.position_covariance, np.zeros(4))
+    assert obj.extent.shape == (4,) and type(obj.id) is int and obj.id == 7
+    assert (obj.position.x, obj.shape, obj.existence) == (0.0, 0, 0.0)
+    head = build_message(store, 'std_msgs/msg/Header',
+                         {'frame_id': np.str_('laser'),
+                          'stamp': {'sec': np.int64(3), 'nanosec': np.uint32(5)}})
+    assert type(head.frame_id) is str and type(head.stamp.sec) is int
+    scan = build_message(store, SCAN_TYPE, {'range_max': np.float32(13.5)})
+    assert type(scan.range_max) is float and scan.range_max == 13.5
+    store.serialize_cdr(obj, 'extended_tracker_msgs/msg/ExtendedObject')   # writable
+    with pytest.raises(BagError, match=r"has no field\(s\) \['rangez'\]"):
+        build_message(store, SCAN_TYPE, {'rangez': [1.0]})
+
+
+def test_the_message_definitions_come_from_the_installed_share_folder(monkeypatch):
+    """Installed, the package finds the definitions under the interpreter's prefix (as
+    ament installs them) even without AMENT_PREFIX_PATH; the source tree comes last."""
+    import sys
+
+    from extended_tracker.bagio import _msg_dirs
+
+    monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
+    dirs = _msg_dirs()
+    assert dirs[0] == Path(sys.prefix) / 'share' / 'extended_tracker_msgs' / 'msg'
+    assert dirs[-1] == ROOT / 'interfaces' / 'extended_tracker_msgs' / 'msg'

@@ -860,3 +860,37 @@ def test_fov_and_frame_names_at_their_edges():
     assert _fov(scan) == pytest.approx((-1.5 * np.pi, -np.pi / 2, 5.0))
     assert [ros2_frame_id(f) for f in ('/laser', '//base/laser', 'laser', '/')] == [
         'laser', 'base/laser', 'laser', '/']
+
+
+def test_scans_are_copied_with_their_intensities_and_time_increment(tmp_path):
+    """A driver's intensities and time between beams reach the output's /scan as read
+    (the simulated scans carry neither, so the other tests could not tell)."""
+    def with_intensities(k, data):
+        data['time_increment'] = 1.25e-5
+        data['intensities'] = np.arange(len(data['ranges']), dtype=np.float32) + k
+
+    write_ros2(tmp_path / 'in', seconds=0.5, edit=with_intensities)
+    replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    out = read_output(tmp_path / 'out')['/scan']
+    assert len(out) == 5
+    for k, (_, scan) in enumerate(out):
+        assert scan.time_increment == np.float32(1.25e-5)
+        np.testing.assert_array_equal(scan.intensities, np.arange(361, dtype=np.float32) + k)
+
+
+def test_a_stale_staging_folder_of_the_same_name_is_cleared(tmp_path):
+    """A staging folder left by an earlier process of the same pid (the pid reused after a
+    kill -9) is removed first: the new bag is written, with nothing of the old in it."""
+    import os
+
+    from extended_tracker.bagio import staged_bag
+
+    out = tmp_path / 'out'
+    stale = tmp_path / f'.out.partial-{os.getpid()}'
+    (stale / 'out').mkdir(parents=True)
+    (stale / 'out' / 'old.mcap').write_text('junk')
+    with staged_bag(out) as tmp:
+        tmp.mkdir()
+        (tmp / 'new.mcap').write_text('bag')
+    assert sorted(p.name for p in out.iterdir()) == ['new.mcap']
+    assert not stale.exists()
