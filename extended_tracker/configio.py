@@ -97,6 +97,13 @@ def load_yaml(path) -> TrackerConfig:
     entries = list(_ros_entries(data, ()))
     if not entries:
         return from_dict(data)
+    for names, params in entries:
+        # rcl refuses the whole file over any node's entry that is not a mapping, an
+        # empty one included ("Cannot have a value before ros__parameters")
+        if not isinstance(params, dict):
+            raise ConfigError(f'{"/".join(names)} in {path}: ros__parameters must be a '
+                              f'mapping, got {params!r} (ROS refuses the file; write {{}} '
+                              'for no parameters)')
     mine = [(names, params) for names, params in entries if _for_this_node(names)]
     if not mine:
         found = ', '.join('/'.join(names) for names, _ in entries)
@@ -108,11 +115,6 @@ def load_yaml(path) -> TrackerConfig:
                           f'({", ".join(spaces)}); give a file with one')
     flat = {}
     for names, params in mine:
-        if params is None:                       # an entry with nothing under it
-            continue
-        if not isinstance(params, dict):
-            raise ConfigError(f'{"/".join(names)} in {path}: ros__parameters must be a '
-                              f'mapping, got {params!r}')
         flat.update(_flattened(params, ''))
     flat = {k: v for k, v in flat.items() if k not in ROS_NODE_PARAMETERS
             and not k.startswith(ROS_NODE_PREFIXES)}

@@ -477,11 +477,30 @@ robot1:
   ros__parameters:
     partition.d_max: 2.5
 """,
+    # wildcards: /* for a node in the root namespace; an entry with no parameters ({}:
+    # an empty ros__parameters is refused, below)
+    'star': """
+/*:
+  ros__parameters:
+    model: {mode: phd}
+extended_tracker:
+  ros__parameters: {}
+""",
+    # a namespace written into the key, beside a wildcard one for the node in any
+    # namespace: one namespace, not two
+    'robot1_keys': """
+/**/extended_tracker:
+  ros__parameters:
+    model: {mode: phd}
+/robot1/extended_tracker:
+  ros__parameters:
+    partition.d_max: 2.5
+""",
 }
 
 
 # the node's namespace for the files written for one (the others run in the root)
-PARAMS_NAMESPACE = {'robot1': '/robot1'}
+PARAMS_NAMESPACE = {'robot1': '/robot1', 'robot1_keys': '/robot1'}
 
 
 @pytest.mark.parametrize('case', sorted(ROBOT_PARAMS))
@@ -500,6 +519,22 @@ def test_offline_tools_read_a_node_parameter_file_as_the_node_does(tmp_path, cas
         h.close()
     assert from_node != TrackerConfig()                  # the file did change something
     assert load_yaml(path) == from_node
+
+
+@pytest.mark.parametrize('entry', ['laser_driver:\n  ros__parameters:\n',
+                                   'laser_driver:\n  ros__parameters: 3\n',
+                                   'extended_tracker:\n  ros__parameters:\n'])
+def test_an_entry_that_is_not_a_mapping_is_refused_as_the_node_refuses_it(tmp_path, entry):
+    """rcl refuses the whole file over any node's ros__parameters that is not a mapping,
+    an empty one too ({} is none): the offline tools refuse it, naming the entry, rather
+    than replay with a file the node would not start with."""
+    path = tmp_path / 'robot.yaml'
+    path.write_text(entry + '/**:\n  ros__parameters:\n    model: {mode: phd}\n')
+    with pytest.raises(Exception, match='Cannot have a value before ros__parameters'):
+        NodeHarness(args=['--ros-args', '--params-file', str(path)])
+    with pytest.raises(ConfigError, match=f'{entry.split(":")[0]} in {path}: ros__parameters '
+                                          'must be a mapping'):
+        load_yaml(path)
 
 
 def test_a_parameter_file_without_the_tracker_or_with_several_is_refused(tmp_path):
@@ -757,6 +792,10 @@ def test_a_whole_number_for_a_double_parameter_is_one_line_in_the_node_and_offli
     plain.write_text('model:\n  p_survival: 1\nbirth:\n  regions: [1, 2, 0]\n')
     assert load_yaml(plain).model.p_survival == 1 and load_yaml(plain).birth.regions == [
         1, 2, 0]
+    # a bool for a double is no whole number missing its point: it is refused as a bool
+    params.write_text('/**:\n  ros__parameters:\n    model:\n      p_survival: true\n')
+    with pytest.raises(ConfigError, match='model.p_survival must be a number, got True'):
+        load_yaml(params)
 
 
 def test_node_overhead_bench_with_and_without_a_marker_listener(marker_builds):
