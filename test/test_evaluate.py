@@ -306,3 +306,22 @@ def test_the_readme_results_section_is_what_make_results_writes(tmp_path):
     copy.write_text(readme.read_text())
     write_readme_results(copy)
     assert copy.read_text() == readme.read_text(), 'run `make results` and commit README.md'
+
+
+def test_the_evaluate_command_gives_the_mean_gospa_of_each_second(tmp_path, capsys):
+    """Its 'over time' line: second s is the mean GOSPA of the scans stamped in it,
+    recomputed here from evaluate_bag's per-scan scores."""
+    from extended_tracker.cli import main
+
+    write_sim_bag(tmp_path / 'scans', 'occlusion', seed=2, duration=3.0)
+    replay(tmp_path / 'scans', tmp_path / 'out', from_dict({'background': {'enabled': False}}),
+           progress=False)
+    truth = tmp_path / 'scans' / 'truth.json'
+    _, per, stamps = evaluate_bag(tmp_path / 'out', truth)
+    second = (stamps - stamps[0]) // 10**9
+    want = [f'{s}s {np.mean([g.total for g, k in zip(per, second) if k == s]):.2f}'
+            for s in range(int(second[-1]) + 1)]
+    assert main(['evaluate', str(tmp_path / 'out'), '--truth', str(truth)]) == 0
+    line, = [x for x in capsys.readouterr().out.splitlines() if x.startswith('over time')]
+    assert line == 'over time (per second): ' + '  '.join(want)
+    assert len(want) == 3

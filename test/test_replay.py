@@ -894,3 +894,31 @@ def test_a_stale_staging_folder_of_the_same_name_is_cleared(tmp_path):
         (tmp / 'new.mcap').write_text('bag')
     assert sorted(p.name for p in out.iterdir()) == ['new.mcap']
     assert not stale.exists()
+
+
+def test_real_with_a_config_replays_every_bag_with_it_and_one_replay_output_by_name(
+        tmp_path, capsys, monkeypatch):
+    """`real --config` uses that config for every bag, the leg-height ones included (its
+    line says --config); `real --data` naming one earlier replay's output replays it (the
+    skip is for such bags met inside a folder)."""
+    import extended_tracker.replay as rp
+    from extended_tracker.cli import main
+    from extended_tracker.configio import load_yaml
+
+    used = []
+    real_replay = rp.replay
+    monkeypatch.setattr(rp, 'replay', lambda bag, target, cfg, *a, **k:
+                        used.append(cfg) or real_replay(bag, target, cfg, *a, **k))
+    data = tmp_path / 'data'
+    write_ros2(data / 'legtracker_positive_1', seconds=1.0)   # a leg-height name
+    config = tmp_path / 'phd.yaml'
+    config.write_text('model: {mode: phd}\n')
+    assert main(['real', '--data', str(data), '--out', str(tmp_path / 'out'),
+                 '--config', str(config)]) == 0
+    line = capsys.readouterr().out.splitlines()[1]
+    assert line.split()[0] == 'legtracker_positive_1' and line.endswith('--config')
+    assert used == [load_yaml(config)]
+    tracks = tmp_path / 'out' / 'legtracker_positive_1_tracks'
+    assert main(['real', '--data', str(tracks), '--out', str(tmp_path / 'again')]) == 0
+    line = capsys.readouterr().out.splitlines()[1]
+    assert line.split()[:2] == ['legtracker_positive_1_tracks', '10'], line
