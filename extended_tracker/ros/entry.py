@@ -13,15 +13,10 @@ from .. import stopping
 def take_signals(stop: threading.Event) -> tuple:
     """Make SIGINT and SIGTERM set ``stop``, unblocked in this thread even when the
     process was started with them blocked (:func:`stopping.unblock`); returns what
-    they had, for :func:`give_back`."""
+    they had, for :func:`stopping.give_back`."""
     taken = stopping.take(lambda *_: stop.set())
     stopping.unblock()
     return taken
-
-
-def give_back(previous: tuple | None) -> None:
-    """Restore what :func:`take_signals` changed (nothing for None)."""
-    stopping.give_back(previous)
 
 
 def main(args=None) -> None:
@@ -32,4 +27,4 @@ def main(args=None) -> None:
 
         run_node(args, stop=stop)
     finally:
-        give_back(previous)
+        stopping.give_back(previous)

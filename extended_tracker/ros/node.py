@@ -34,13 +34,14 @@ from sensor_msgs.msg import LaserScan
 from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
+from .. import stopping
 from ..config import from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig
 from ..configio import double_hint, DOUBLE_LIST_HINT, NODE_NAME
 from ..errors import ConfigError
 from ..messages import markers_data, tracks_data
 from ..pipeline import held, PipelineState, reset, step
 from .convert import fill
-from .entry import give_back, take_signals
+from .entry import take_signals
 
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
 # estimates), or building or publishing its messages did.
@@ -343,7 +344,7 @@ def main(args=None, stop: threading.Event | None = None) -> None:
             node.get_logger().info(node.summary())
             node.destroy_node()
         _shutdown()
-        give_back(previous)
+        stopping.give_back(previous)
 
 
 def _shutdown() -> None:
