@@ -747,6 +747,20 @@ def test_a_track_the_sensor_would_stand_in_is_dropped_with_its_weight(mode):
     assert with_it.diagnostics['left_view'] == 0
 
 
+def walker_scan():
+    """One scan, without dropouts, of a walker 5 m ahead."""
+    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
+                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
+    return scan
+
+
+def exactly(cfg, n):
+    """The log cardinality pmf of exactly ``n`` objects."""
+    card = np.full(cfg.model.n_max + 1, -np.inf)
+    card[n] = 0.0
+    return card
+
+
 def assert_dropped_with_its_weight(extra, mode):
     """
     Step one scan of a walker 5 m away from a state holding its track and ``extra``
@@ -757,12 +771,9 @@ def assert_dropped_with_its_weight(extra, mode):
     cfg = from_dict({'background': {'enabled': False}, 'model': {'mode': mode}})
     far = component_at(5.0, 0.0)
     both = Mixture.concat([far, evolve(extra, label=np.array([2]))])
-    card2, card1 = np.full(cfg.model.n_max + 1, -np.inf), np.full(cfg.model.n_max + 1, -np.inf)
-    card2[2] = card1[1] = 0.0
-    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
-                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
-    state, with_it = step(pipeline_with(both, cfg, card2), scan, cfg)
-    oracle, without = step(pipeline_with(far, cfg, card1), scan, cfg)
+    scan = walker_scan()
+    state, with_it = step(pipeline_with(both, cfg, exactly(cfg, 2)), scan, cfg)
+    oracle, without = step(pipeline_with(far, cfg, exactly(cfg, 1)), scan, cfg)
     got, want = state.filter.mixture, oracle.filter.mixture
     assert got.label.tolist() == want.label.tolist()
     np.testing.assert_allclose(got.w, want.w, atol=1e-3)
@@ -1001,13 +1012,10 @@ def test_a_track_that_left_the_field_of_view_is_dropped_and_counted():
     far = component_at(5.0, 0.0)
     behind = evolve(component_at(-3.0, 0.5), label=np.array([2]))
     beyond = evolve(with_rate(component_at(9.55, 9.55), 0.2), label=np.array([3]))
-    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
-                                laser=LaserSpec(dropout=0.0)), 0.1, seed=0)
+    scan = walker_scan()
     assert detection_model(beyond, scan_to_points(scan), cfg).sparse[0]
-    card = np.full(cfg.model.n_max + 1, -np.inf)
-    card[3] = 0.0
-    state, res = step(pipeline_with(Mixture.concat([far, behind, beyond]), cfg, card), scan,
-                      cfg)
+    state, res = step(pipeline_with(Mixture.concat([far, behind, beyond]), cfg,
+                                    exactly(cfg, 3)), scan, cfg)
     assert res.diagnostics['left_view'] == 2
     assert res.diagnostics['at_sensor'] == res.diagnostics['sparse'] == 0
     assert set(state.filter.mixture.label.tolist()) == {1}
