@@ -205,6 +205,9 @@ def evaluate_bag(output_bag, truth_path, plot=None):
         by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
         view = truth.get('info', {}).get('view')
         digest = truth.get('info', {}).get('scan_digest')
+        # which objects were hidden is known when every object says how many beams
+        # reached it (an older truth file says it of none)
+        beams_known = all('visible_beams' in o for objs in by_stamp.values() for o in objs)
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
         msg = (f'cannot read the truth {truth_path} (a truth.json written by '
                f'extended-tracker simulate): {err!r}')
@@ -236,8 +239,8 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             est = msg.objects
             est_m = np.array([[o.position.x, o.position.y] for o in est]).reshape(-1, 2)
             est = [o for o, k in zip(est, in_view(est_m, view)) if k]
-            hidden_seq.append(np.array([o['visible_beams'] == 0 for o in objs], dtype=bool)
-                              if all('visible_beams' in o for o in objs) else None)
+            if beams_known:
+                hidden_seq.append(np.array([o['visible_beams'] == 0 for o in objs], dtype=bool))
             truth_seq.append(([o['id'] for o in objs],
                               np.array([o['centre'] for o in objs]).reshape(-1, 2),
                               np.array([o['extent'] for o in objs]).reshape(-1, 2, 2)))
@@ -250,9 +253,8 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             counts.append((len(objs), len(est)))
     if not stamps:
         raise BagError('no /tracks message matches a truth stamp')
-    if any(h is None for h in hidden_seq):
-        hidden_seq = None                  # an older truth file: which were hidden unknown
-    score, per = score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P, hidden_seq)
+    score, per = score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P,
+                                hidden_seq if beams_known else None)
     if plot:
         _plot(plot, np.array(stamps), per, np.array(counts))
     return score, per, np.array(stamps)

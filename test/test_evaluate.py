@@ -46,6 +46,18 @@ def test_replayed_bag_scores_against_its_truth(tmp_path):
     older, _, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'older.json')
     assert (older.hidden, older.hidden_kept) == (0, 0)
     assert older.gospa_mean == score.gospa_mean and older.id_switches == score.id_switches
+    # known or not is said of the file: one object without its beams makes it unknown; a
+    # scan with no object in view (the first here, emptied) leaves the others' known
+    truth = json.loads((tmp_path / 'scans' / 'truth.json').read_text())
+    assert not any(o['visible_beams'] == 0 for o in truth['scans'][0]['objects'])
+    truth['scans'][0]['objects'] = []
+    (tmp_path / 'emptied.json').write_text(json.dumps(truth))
+    emptied, _, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'emptied.json')
+    assert (emptied.hidden, emptied.hidden_kept) == (score.hidden, score.hidden_kept)
+    del truth['scans'][-1]['objects'][0]['visible_beams']
+    (tmp_path / 'mixed.json').write_text(json.dumps(truth))
+    mixed, _, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'mixed.json')
+    assert (mixed.hidden, mixed.hidden_kept) == (0, 0)
 
 
 def test_the_readme_figures_of_a_scene_that_starts_with_a_person_standing(tmp_path):
@@ -140,7 +152,7 @@ def test_a_replayed_bag_is_scored_over_the_region_its_truth_file_gives(tmp_path)
     assert truth['info']['view'] == [-np.pi / 2, np.pi / 2, 13.0]
     cfg = from_dict({'background': {'enabled': False}})
     replay(tmp_path / 'scans', tmp_path / 'out', cfg, progress=False)
-    inside, _, _ = evaluate_bag(tmp_path / 'out', truth_path)
+    inside, per_inside, _ = evaluate_bag(tmp_path / 'out', truth_path)
     # a ghost truth object far behind the scanner: outside the region it is not scored;
     # without a region (an older truth file) it is a missed object in every scan
     for scan in truth['scans']:
@@ -154,6 +166,49 @@ def test_a_replayed_bag_is_scored_over_the_region_its_truth_file_gives(tmp_path)
     truth_path.write_text(json.dumps(truth))
     unbounded, _, _ = evaluate_bag(tmp_path / 'out', truth_path)
     assert unbounded.missed_mean > inside.missed_mean + 1.9     # c^p / 2 = 2 per scan
+    # a region holding nothing: no truth and no estimate scored (the tracks the replay
+    # published lie outside it), so nothing missed and nothing false
+    assert sum(len(g.pairs) + g.n_false for g in per_inside) > 20
+    truth['info']['view'] = [-np.pi / 2, np.pi / 2, 0.5]
+    truth_path.write_text(json.dumps(truth))
+    _, per, _ = evaluate_bag(tmp_path / 'out', truth_path)
+    assert len(per) == inside.scans == 30
+    assert all(g.total == 0.0 and g.n_false == 0 == g.n_missed for g in per)
+
+
+def test_the_evaluate_plot_is_gospa_and_the_counts_against_seconds(tmp_path, monkeypatch):
+    """What ``evaluate --plot`` draws: per scan, GOSPA and the localisation part's root
+    on top, the true and the estimated count below, against seconds from the first
+    scored scan."""
+    import matplotlib.figure
+
+    drawn = []
+    save = matplotlib.figure.Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        drawn.append(fig)
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, 'savefig', keep)
+    write_sim_bag(tmp_path / 'scans', 'occlusion', seed=0, duration=3.0)
+    replay(tmp_path / 'scans', tmp_path / 'out', from_dict({}), progress=False)
+    _, per, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'scans' / 'truth.json',
+                             plot=tmp_path / 'g.png')
+    (fig,) = drawn
+    top, bottom = fig.axes
+    seconds = np.arange(len(per)) * 0.1                        # the scene's 10 Hz
+    gospa_line, loc_line = top.get_lines()
+    true_line, est_line = bottom.get_lines()
+    for line in (gospa_line, loc_line, true_line, est_line):
+        assert np.allclose(line.get_xdata(), seconds, rtol=0, atol=1e-9)
+    assert np.array_equal(gospa_line.get_ydata(), [g.total for g in per])
+    assert np.allclose(loc_line.get_ydata() ** 2, [g.localisation for g in per])
+    # every true object is paired or missed, every estimate paired or false
+    assert true_line.get_ydata().tolist() == [len(g.pairs) + g.n_missed for g in per]
+    assert est_line.get_ydata().tolist() == [len(g.pairs) + g.n_false for g in per]
+    assert max(est_line.get_ydata()) > 0
+    assert (bottom.get_xlabel(), top.get_ylabel(), bottom.get_ylabel()) == \
+        ('time (s)', 'm', 'objects')
 
 
 def test_the_results_do_not_rest_on_the_last_bit(monkeypatch):

@@ -106,3 +106,23 @@ def test_hidden_objects_kept_are_counted_by_the_assignment():
     assert (score.hidden, score.hidden_kept) == (2, 1)
     score, _ = score_sequence(truth, est)                        # not known: none counted
     assert (score.hidden, score.hidden_kept) == (0, 0)
+
+
+def test_the_means_over_a_run_are_those_of_each_scans_parts():
+    """
+    Three scans: a pair 0.3 m apart (localisation 0.09), a missed object and a false
+    estimate (c^p / 2 = 2 each). The run's means are those of the parts, by hand.
+    """
+    I = 0.04 * np.eye(2)[None]
+    none = ([], np.zeros((0, 2)), np.zeros((0, 2, 2)))
+    one = ([5], np.zeros((1, 2)), I)
+    truth = [one, one, none]
+    est = [([1], np.array([[0.3, 0.0]]), I), none, ([1], np.array([[4.0, 0.0]]), I)]
+    score, per = score_sequence(truth, est)
+    assert [g.total for g in per] == pytest.approx([0.3, np.sqrt(2), np.sqrt(2)])
+    assert score.gospa_mean == pytest.approx((0.3 + 2 * np.sqrt(2)) / 3)
+    assert score.localisation_mean == pytest.approx(0.09 / 3)
+    assert score.missed_mean == pytest.approx(2 / 3)
+    assert score.false_mean == pytest.approx(2 / 3)
+    assert score.cardinality_error == pytest.approx(2 / 3)
+    assert (score.scans, score.id_switches, score.fragmentations) == (3, 0, 0)
