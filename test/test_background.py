@@ -249,6 +249,64 @@ def test_a_beam_flipping_between_two_ranges_learns_both():
     assert np.allclose(state.background, 1.9) and np.allclose(state.second, 4.9)
 
 
+
+def test_a_range_interrupted_once_by_another_keeps_its_count():
+    """
+    A beam with nothing known returns the wall (4 m), once something passing (2.5 m) in
+    between: the wall keeps the returns it had counted (it is the beam's other recent
+    range meanwhile) and is learned at its 11th return, as without the interruption.
+    """
+    cfg = from_dict({}).background                      # confirm_time 1 s
+    no = np.zeros(3, bool)
+    seq = [4.0] * 6 + [2.5] + [4.0] * 5                 # the wall's 11th return last
+    state, keep = _empty_then(seq[:-1], cfg, no)
+    assert keep.all() and np.isnan(state.background).all()
+    state, keep = _empty_then(seq, cfg, no)
+    assert not keep.any() and state.learned.all() and np.allclose(state.background, 4.0)
+
+
+def test_a_farther_range_replaces_the_background_only_when_the_background_has_gone():
+    """
+    Known background 2 m, then 4 m for confirm_time (11 returns). When the 2 m was
+    returned within confirm_time of that (0.8 s before, between the 4 m returns), the
+    beam flips between the two: 4 m becomes its second range and 2 m stays. When it was
+    last returned 1.1 s before, 2 m has gone and 4 m replaces it.
+    """
+    cfg = from_dict({}).background
+    no = np.zeros(3, bool)
+    known = [2.0] * 12
+    state, keep = _empty_then(known + [4.0] * 3 + [2.0] + [4.0] * 8, cfg, no)
+    assert not keep.any() and state.learned.all()
+    assert np.allclose(state.background, 2.0) and np.allclose(state.second, 4.0)
+    state, keep = _empty_then(known + [4.0] * 11, cfg, no)
+    assert not keep.any() and state.learned.all()
+    assert np.allclose(state.background, 4.0) and np.isnan(state.second).all()
+
+
+def test_the_second_range_is_refined_as_the_first_and_the_first_ages_meanwhile():
+    """
+    A post (1 m) learned as the beam's second range in front of its wall (4 m), then
+    returned alone for 0.5 s at ranges that wander within the margin: the second range
+    is the exponential smoothing of those returns (gain dt / learn_time; oracle: the
+    loop), the wall's range stays, and the time since the wall was returned counts on
+    (the post's returns are not the wall's).
+    """
+    cfg = from_dict({'background': {'forget_time': 5.0}}).background
+    no = np.zeros(3, bool)
+    post = [4.0] * 12 + [1.0, 4.0] * 10 + [1.0]
+    state, _ = _empty_then(post, cfg, no)
+    assert np.allclose(state.second, 1.0) and np.allclose(state.background_ago, 0.1)
+    wander = np.float32([1.05, 0.97, 1.08, 1.02, 0.95])
+    state, keep = _empty_then(post + list(wander), cfg, no)
+    want = 1.0
+    for r in wander:
+        want += 0.1 / cfg.learn_time * (float(r) - want)
+    assert not keep.any()
+    np.testing.assert_allclose(state.second, want, rtol=1e-12)
+    np.testing.assert_allclose(state.background, 4.0, rtol=1e-12)
+    np.testing.assert_allclose(state.background_ago, 0.6)
+    np.testing.assert_allclose(state.second_ago, 0.0)
+
 def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_track():
     """
     A small static object in open space that returns in 60 % of scans (dark, at the edge
@@ -570,6 +628,46 @@ def test_a_wall_hidden_since_start_up_is_learned_as_soon_as_it_is_revealed():
     assert kept[15][10:].all() and not kept[-1][10:].any()
 
 
+
+def test_a_person_stepping_into_an_open_doorway_does_not_continue_the_wall():
+    """
+    A wall 5 m away with a doorway (beams 10-20 return nothing: out of range beyond it),
+    those beams seen free. Then someone fills the doorway in line with the wall (5.05 m):
+    their returns are within margin of the wall's range next to the door, but the beams
+    were seen free, so they continue nothing (that is for beams never seen, a wall
+    revealed): they reach the filter as any new return does until confirm_time.
+    """
+    cfg = from_dict({}).background
+    door = np.full(31, 5.0)
+    door[10:21] = np.inf
+    person = door.copy()
+    person[10:21] = 5.05
+    state, kept = _fan([door] * 12 + [person] * 3, cfg)
+    assert state.free[10:21].all() and np.isfinite(state.background[:10]).all()
+    assert all(k[10:21].all() and not k[:10].any() and not k[21:].any() for k in kept[12:])
+    assert np.isnan(state.background[10:21]).all()
+
+
+def test_a_scan_at_other_angles_starts_the_background_afresh():
+    """The background is per beam: a scan with as many beams at other angles (a scanner
+    turned by half a beam) learns from nothing; the same angles again keep what was
+    learned."""
+    cfg = from_dict({}).background
+    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=31)
+    (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
+    scan.ranges = np.full(31, 4.0, dtype=np.float32)
+    none = np.zeros(31, bool)
+    state = None
+    for _ in range(11):
+        state, keep = update_background(state, scan_to_points(scan), 0.1, cfg, none)
+    assert not keep.any() and np.allclose(state.background, 4.0)
+    same, keep = update_background(state, scan_to_points(scan), 0.1, cfg, none)
+    assert not keep.any() and np.allclose(same.background, 4.0)
+    scan.angle_min += 0.5 * scan.angle_increment
+    scan.angle_max += 0.5 * scan.angle_increment
+    turned, keep = update_background(state, scan_to_points(scan), 0.1, cfg, none)
+    assert keep.all() and np.isnan(turned.background).all()
+
 def _continues_ring_by_ring(r, b, which, reach, margin, wrap):
     """The plain reading of ``_continues``: one ring of neighbours a round, beam by beam."""
     from extended_tracker.sensing.background import NEIGHBOUR_BEAMS
@@ -599,7 +697,7 @@ def _continues_ring_by_ring(r, b, which, reach, margin, wrap):
 @pytest.mark.parametrize('seed', range(40))
 def test_revealed_stretches_are_found_as_ring_by_ring(seed):
     """Runs taken whole give what finding one ring of neighbours a round gives."""
-    from extended_tracker.sensing.background import _continues, _reach
+    from extended_tracker.sensing.background import _continues, _reach, NEIGHBOUR_BEAMS
 
     rng = np.random.default_rng(seed)
     n = int(rng.integers(2, 60))
@@ -609,6 +707,10 @@ def test_revealed_stretches_are_found_as_ring_by_ring(seed):
     b = np.where(rng.random(n) < 0.3, r + rng.normal(0, 0.1, n), np.nan)
     which = np.isnan(b) & np.isfinite(r) & (rng.random(n) < 0.9)
     reach = _reach(np.deg2rad(rng.choice([0.25, 0.5, 1.0, 3.0])), 0.15)
+    if seed % 2 == 0:
+        # about where beams one apart stop being within margin across: runs end there
+        shift = 0.97 * reach[NEIGHBOUR_BEAMS + 1] - 3.0
+        r, b = r + shift, b + shift
     for wrap in (False, True):
         got = _continues(r, b, which, reach, 0.15, wrap)
         assert np.array_equal(got, _continues_ring_by_ring(r, b, which, reach, 0.15, wrap))

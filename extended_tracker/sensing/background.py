@@ -226,9 +226,7 @@ def _runs(r, which, reach_one, margin, wrap=False):
     i = link.nonzero()[0]
     ri, rn = r[i], r[(i + 1) % n]
     link[i] = (np.abs(ri - rn) <= margin) & (np.maximum(ri, rn) <= reach_one)
-    if not wrap:
-        link[-1] = False
-    run = np.cumsum(np.concatenate([[True], ~link[:-1]])) - 1
+    run = np.cumsum(np.concatenate([[True], ~link[:-1]])) - 1   # link[-1]: the seam's
     if wrap and link[-1]:
         run[run == run[-1]] = run[0]                   # the run across the seam
     return run
