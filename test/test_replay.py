@@ -515,6 +515,30 @@ def test_a_signal_sent_while_blocked_ends_the_command_as_it_starts(sig, tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+
+def test_a_stop_is_the_first_signal_received_each_raising_its_own_exception():
+    """SIGTERM raises ``Terminated``, SIGINT ``KeyboardInterrupt`` (code that catches a
+    Ctrl-C does not swallow a kill); with both received, the first says why the command
+    ends, and ``check`` raises that one again; after ``reset`` nothing is recorded."""
+    import signal
+
+    from extended_tracker import stopping
+
+    stopping.reset()
+    try:
+        with pytest.raises(stopping.Terminated):
+            stopping.on_signal(signal.SIGTERM, None)
+        with pytest.raises(KeyboardInterrupt):
+            stopping.on_signal(signal.SIGINT, None)
+        assert stopping.received() == signal.SIGTERM
+        with pytest.raises(stopping.Terminated):
+            stopping.check()
+    finally:
+        stopping.reset()
+    assert stopping.received() is None
+    stopping.check()                                # nothing recorded: nothing raised
+    assert not issubclass(stopping.Terminated, (KeyboardInterrupt, Exception))
+
 def _lost_signal(sig='SIGTERM'):
     """Send this process ``sig`` inside code that swallows every exception, as C code
     may (an extension module's import did): the handler runs, its exception is lost."""
