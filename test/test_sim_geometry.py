@@ -3,6 +3,8 @@ The laser simulator against what is worked out apart from it: ray casting agains
 along every beam, walls against their closed form, motion against integrating the
 velocity, the truth's extent against samples of the filled shape, and the noise, dropout
 and clutter against their statistics. Every figure of the results table comes from it.
+The point simulator, on which the filter-core scenario tests run, against its
+measurement model's moments.
 """
 
 import math
@@ -213,3 +215,42 @@ def test_clutter_is_poisson_per_scan_and_uniform_in_front_of_what_a_beam_hits():
     assert np.all((u >= 0.0) & (u <= 1.0))
     assert abs(u.mean() - 0.5) < 4 * math.sqrt(1 / 12 / len(u))
     assert abs(u.var() * 12 - 1.0) < 0.06
+
+
+def test_the_point_simulator_draws_from_the_measurement_model():
+    """
+    ``sim.points``: an object alive at ``t`` (``t_start`` to ``t_end``, both included) is
+    at ``start + velocity (t - t_start)`` and yields Poisson(rate) points from
+    N(centre, rho X + sigma^2 I); a missed one yields none and is in the truth all the
+    same; clutter is Poisson(clutter_rate) points uniform in the box. Checked against
+    sample moments of 4000 scans (tolerances some five standard errors).
+    """
+    from extended_tracker.sim.points import point_scene, PointObject
+
+    X = np.array([[0.36, 0.1], [0.1, 0.09]])
+    ob = PointObject((1.0, 2.0), (0.5, -0.25), extent=tuple(map(tuple, X)), rate=8.0,
+                     t_start=2.0, t_end=6.0)
+    centre = np.array([2.0, 1.5])                             # 2 s after its start
+    rng = np.random.default_rng(0)
+    draws = [point_scene([ob], 4.0, rng, rho=0.25, sigma=0.05, clutter_rate=0.0)
+             for _ in range(4000)]
+    counts = np.array([len(pts) for pts, _ in draws])
+    assert abs(counts.mean() - 8.0) < 0.25 and abs(counts.var() - 8.0) < 1.0
+    pts = np.vstack([pts for pts, _ in draws])
+    assert np.abs(pts.mean(axis=0) - centre).max() < 0.01
+    np.testing.assert_allclose(np.cov(pts.T), 0.25 * X + 0.0025 * np.eye(2), atol=0.004)
+    (i, c), = draws[0][1]
+    assert i == 0 and np.allclose(c, centre)
+    for t, alive in ((1.99, False), (2.0, True), (6.0, True), (6.01, False)):
+        pts, truth = point_scene([ob], t, rng, clutter_rate=0.0)
+        assert (len(truth) == 1) == alive and (alive or len(pts) == 0), t
+    pts, truth = point_scene([ob], 4.0, rng, clutter_rate=0.0, missed=(0,))
+    assert len(pts) == 0 and len(truth) == 1
+    # clutter alone (the object gone): 3 a scan, uniform in a 4 m x 6 m box
+    box = ((-1.0, -2.0), (3.0, 4.0))
+    draws = [point_scene([ob], 10.0, rng, clutter_rate=3.0, box=box)[0] for _ in range(4000)]
+    assert abs(np.mean([len(d) for d in draws]) - 3.0) < 0.15
+    pts = np.vstack(draws)
+    assert (pts >= box[0]).all() and (pts <= box[1]).all()
+    assert np.abs(pts.mean(axis=0) - [1.0, 1.0]).max() < 0.08
+    assert np.abs(pts.var(axis=0) - [16 / 12, 36 / 12]).max() < 0.12
