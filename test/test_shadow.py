@@ -1019,3 +1019,33 @@ def test_a_track_that_left_the_field_of_view_is_dropped_and_counted():
     assert res.diagnostics['left_view'] == 2
     assert res.diagnostics['at_sensor'] == res.diagnostics['sparse'] == 0
     assert set(state.filter.mixture.label.tolist()) == {1}
+
+
+def test_each_reported_object_carries_the_visible_fraction_its_p_d_used():
+    """
+    The occlusion scene: one person walks behind another who stands. The reported
+    ``visibility`` of each object is its own (it follows the object through the
+    relabelling and reordering of the reports): the one standing in front is in full view
+    throughout (1), the walker's falls to near 0 in the scans where no beam reaches it
+    and is 1 where it is in the open.
+    """
+    cfg = from_dict({'background': {'enabled': False}})
+    state = PipelineState.initial(cfg)
+    hidden, open_, front = [], [], []
+    for scan, truth in simulate(occlusion_scene(), 12.0, seed=0):
+        state, res = step(state, scan, cfg)
+        e = res.estimates
+        for o in truth:
+            d = np.linalg.norm(e.m[:, :2] - o.centre, axis=1)
+            if not len(d) or d.min() > 0.5:
+                continue
+            vis = float(e.visibility[np.argmin(d)])
+            if o.id == 0:
+                front.append(vis)
+            elif o.visible_beams == 0:
+                hidden.append(vis)
+            elif o.visible_beams >= 8:
+                open_.append(vis)
+    assert len(front) > 100 and min(front) == 1.0
+    assert len(hidden) >= 15 and np.mean(hidden) < 0.1 and max(hidden) < 0.3
+    assert len(open_) > 50 and np.mean(open_) > 0.95
