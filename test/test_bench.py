@@ -2,6 +2,7 @@
 
 import re
 
+import numpy as np
 import pytest
 
 from extended_tracker.bench import (bench_filter, bench_profile, exp_ns, machine_line,
@@ -110,12 +111,13 @@ def test_growth_exponent_recovers_a_power_law():
 def test_report_growth_fits_the_time_above_the_fixed_cost(capsys):
     """Oracle: rows made from ``fixed + a (objects x cells)^0.6`` with detections
     ``5 (objects x cells)^0.5``, so the time above the fixed cost goes as detections^1.2:
-    the fits recover both exponents; the N = 0 row is left out."""
+    the fits recover both exponents; the N = 0 row is left out, though timed a little
+    above the fixed cost (objects x cells is 0 there: no power law passes through it)."""
     from extended_tracker.bench import report_growth
 
     fixed = 0.7
     cases = [(1, 3), (4, 7), (10, 18), (20, 37), (50, 38)]
-    rows = [(0, 0.0, 0.0, fixed)] + [
+    rows = [(0, 0.0, 0.0, fixed + 0.05)] + [
         (n, 5.0 * (n * c) ** 0.5, float(c), fixed + 0.01 * (n * c) ** 0.6) for n, c in cases]
     k_oc, k_d = report_growth(rows, fixed)
     assert k_oc == pytest.approx(0.6, abs=1e-12)
@@ -219,3 +221,60 @@ def test_bench_refuses_a_scaling_picture_name_before_running_anything(png, why, 
     assert cli.main(['bench', '--png', str(tmp_path / png)]) == 2
     err = capsys.readouterr().err
     assert err.startswith('extended-tracker: error: plot ') and why in err, err
+
+
+def test_stats_are_the_median_the_99th_percentile_and_the_maximum_in_ms():
+    """Oracle: 1 to 100 ms: median 50.5, p99 99.01 (linear between order statistics, as
+    numpy's default percentile), maximum 100."""
+    from extended_tracker.bench import _stats
+
+    med, p99, mx = _stats(np.arange(100, 0, -1) * 1e-3)
+    assert (med, mx) == pytest.approx((50.5, 100.0), abs=1e-9)
+    assert p99 == pytest.approx(99.01, abs=1e-9)
+
+
+def test_a_round_meets_a_case_when_its_median_and_its_p99_are_both_within_target(
+        capsys, monkeypatch):
+    """
+    The table's 'rounds met' column, with step times made up on either side of the
+    issues' targets (4 pedestrians: median 1.5 ms; 10: median 5; S1: 2 / 6; S2: 6 / 20;
+    S3: p99 25): 98 steps at one time and 2 at another give that median and that p99.
+    S1's median is within and its p99 over: not met.
+    """
+    import extended_tracker.bench as bench
+
+    made = {4: (1.4, 3.0), 10: (5.1, 5.2), 'S1': (1.9, 6.5), 'S2': (5.9, 19.0),
+            'S3': (10.0, 26.0)}
+
+    def times(key):
+        med, p99 = made[key]
+        return [med * 1e-3] * 98 + [p99 * 1e-3] * 2
+
+    monkeypatch.setattr(bench, 'reference_ms', lambda: 1.0)
+    monkeypatch.setattr(bench, '_pedestrian_runs', lambda n, *a, **k: n)
+    monkeypatch.setattr(bench, '_filter_times', lambda runs, cfg, warm: (times(runs), []))
+    monkeypatch.setattr(bench, '_pipeline_cases', lambda scans: [
+        (f'{key} case', None, None, key) for key in ('S1', 'S2', 'S3')])
+    monkeypatch.setattr(bench, '_pipeline_times', lambda data, cfg: (times(data), []))
+    pooled = bench.bench_targets(rounds=2)
+    assert [len(t) for t in pooled.values()] == [200] * 5
+    rows = [row.split() for row in capsys.readouterr().out.splitlines()
+            if row.startswith(('filter step', 'S1 case', 'S2 case', 'S3 case'))]
+    assert [r[-1] for r in rows] == ['2/2', '0/2', '0/2', '2/2', '0/2']
+    s1 = next(r for r in rows if r[0] == 'S1')
+    assert s1[2:6] == ['1.90', '6.50', '1.90-1.90', '2']
+    assert next(r for r in rows if r[0] == 'S3')[4:8] == ['10.00-10.00', '-', '/', '25']
+
+
+def test_the_memory_figures_are_the_kernels_resident_set_in_mib():
+    """Oracle: the kernel's own accounts, VmRSS and VmHWM of /proc/self/status and the
+    rusage high-water mark (kB), in MiB."""
+    import resource
+
+    from extended_tracker.bench import _peak_rss_mb, _rss_mb
+
+    status = dict(line.split(':', 1) for line in open('/proc/self/status'))
+    now = int(status['VmRSS'].split()[0]) / 1024
+    assert _rss_mb() == pytest.approx(now, abs=2.0)
+    assert _peak_rss_mb() == pytest.approx(
+        resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, abs=2.0)
