@@ -36,6 +36,10 @@ def test_every_invalid_kind_is_masked_and_counted():
     inclusive = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1),
                                range_max_inclusive=True)
     assert inclusive.beam.tolist() == [5, 6] and inclusive.masked['above_max'] == 1
+    # every beam without a valid return has no range (inf: nothing in front of the
+    # scanner there, for the p_D model), whatever its kind
+    assert np.isinf(sp.ranges).tolist() == [True] * 6 + [False, True]
+    assert sp.ranges[6] == 5.0 and sp.valid.tolist() == [False] * 6 + [True, False]
 
 
 def test_configured_range_limits_tighten_the_scans_own():
@@ -46,6 +50,7 @@ def test_configured_range_limits_tighten_the_scans_own():
                         max_range=5.0)
     assert sp.beam.tolist() == [2, 3]
     assert sp.masked['below_min'] == 2 and sp.masked['above_max'] == 2
+    assert sp.range_max == 5.0                         # the range clutter spreads over
     loose = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1), min_range=0.01,
                            max_range=50.0)
     assert loose.beam.tolist() == [1, 2, 3, 4, 5]      # the scan's own 0.1 m still holds
@@ -66,6 +71,13 @@ def test_negative_increment():
     np.testing.assert_allclose(sp.points, expected, atol=1e-12)
     assert sp.angle_lo == pytest.approx(-3 * math.pi / 4)
     assert sp.angle_hi == pytest.approx(3 * math.pi / 4)
+    # the beam spacing is a spacing, whatever the direction: 90 deg (and these four
+    # beams, 90 deg apart across the back too, go all the way round), and a full turn
+    # listed downwards is a full turn
+    assert sp.angle_step == pytest.approx(math.pi / 2) and sp.full_turn
+    inc = -math.radians(1.0)
+    turn = scan_to_points(make_scan(np.ones(360), angle_min=math.pi, inc=inc))
+    assert turn.angle_step == pytest.approx(math.radians(1.0)) and turn.full_turn
 
 
 def test_empty_and_all_invalid_scans_give_no_points():
@@ -78,6 +90,8 @@ def test_empty_and_all_invalid_scans_give_no_points():
     ({'inc': 0.0}, 'angle_increment must not be zero'),
     ({'inc': float('nan')}, 'angle_increment must be finite'),
     ({'range_min': 5.0, 'range_max': 1.0}, 'range limits'),
+    ({'range_min': 2.0, 'range_max': 2.0}, 'range limits'),     # no range left between
+    ({'range_min': -0.1}, 'range limits'),
     ({'range_max': float('inf')}, 'range_max must be finite'),
     ({'angle_max': 5.0}, 'disagrees'),
     ({'range_min': 'near'}, 'range_min must be a number'),
@@ -103,6 +117,12 @@ def test_angle_max_one_or_two_beams_off_is_taken():
                                   inc=float(f32(0.008727000094950199)),
                                   angle_max=float(f32(1.5664335489273071))))
     assert len(sp.points) == 361
+    # exactly two beams off, in binary-exact figures: taken; angle_max behind angle_min
+    # for the increment's direction (a single beam: 0.2 beams expected): refused
+    assert len(scan_to_points(make_scan(np.ones(3), angle_min=0.0, inc=0.5,
+                                        angle_max=2.0)).points) == 3
+    with pytest.raises(ScanError, match='disagrees'):
+        scan_to_points(make_scan([1.0], angle_min=0.0, inc=0.125, angle_max=-0.1))
     for span in (96, 102):
         with pytest.raises(ScanError, match='disagrees'):
             scan_to_points(make_scan(np.ones(100), angle_min=0.0, inc=inc,
@@ -114,7 +134,11 @@ def test_more_than_a_full_turn_is_refused():
         scan_to_points(make_scan(np.ones(100), angle_min=0.0, inc=0.1, angle_max=9.9))
     # at 1 degree: 361 beams (a full turn and the seam's beam twice) are taken, 362 not
     inc = math.radians(1.0)
-    assert len(scan_to_points(make_scan(np.ones(361), angle_min=0.0, inc=inc)).points) == 361
+    sp = scan_to_points(make_scan(np.ones(361), angle_min=0.0, inc=inc, range_max=13.0))
+    assert len(sp.points) == 361
+    # covering no more than the full turn: its area is the disc's
+    assert sp.full_turn and sp.fov == pytest.approx(2 * math.pi, rel=1e-12)
+    assert sp.area == pytest.approx(math.pi * 13.0 ** 2, rel=1e-12)
     with pytest.raises(ScanError, match='full turn'):
         scan_to_points(make_scan(np.ones(362), angle_min=0.0, inc=inc))
 
