@@ -176,14 +176,16 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
 
 def _limits(chunks):
     """``(lo, hi)`` corners of the view around the points and track centres (0.5 and 99.5
-    percentiles, 1 m margin), the sensor at the origin kept in view; None without any."""
+    percentiles, 1 m margin), the sensor at the origin kept in view, half a metre from the
+    edge at least, on every side (a scanner looking backwards sees negative x only);
+    None without any."""
     chunks = [c for c in chunks if len(c)]
     if not chunks:
         return None
     allp = np.vstack(chunks + [np.zeros((1, 2))])
     lo = np.percentile(allp, 0.5, axis=0) - 1.0
     hi = np.percentile(allp, 99.5, axis=0) + 1.0
-    return np.minimum(lo, -0.5), hi
+    return np.minimum(lo, -0.5), np.maximum(hi, 0.5)
 
 
 FIGURE_SIZE = (10.0, 8.0)        # inches, the picture of a scene about as wide as deep

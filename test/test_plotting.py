@@ -92,6 +92,61 @@ def test_a_long_run_holds_bounded_memory_for_the_clouds(results):
     assert every_scan > 3 * (clouds + tracks)
 
 
+
+def _made_up(n_points, labels=()):
+    """A result with ``n_points`` detections and estimates of ``labels``."""
+    from types import SimpleNamespace
+
+    from mixtures import estimates
+
+    est = estimates(list(labels), np.array([[k, 1.0] for k in range(len(labels))]).reshape(-1, 2))
+    return SimpleNamespace(estimates=est, points=np.zeros((n_points, 2)),
+                           background_points=np.zeros((0, 2)))
+
+
+def test_the_sample_thins_once_its_cost_passes_twice_the_budget_and_not_before():
+    """Each scan costs its returns and ``SCAN_COST`` more: with 76 returns a scan costs
+    100, so a budget of 1,000 holds 20 scans (2,000) whole and thins at the 21st."""
+    assert RunSketch.SCAN_COST == 24
+    sketch = RunSketch(max_points=1_000)
+    for _ in range(20):
+        sketch.add(_made_up(76))
+    assert sketch.stride == 1 and len(sketch._clouds) == 20
+    sketch.add(_made_up(76))
+    assert sketch.stride == 2 and [c[0] for c in sketch._clouds] == list(range(0, 21, 2))
+
+
+def test_the_sketch_draws_as_boxes_what_its_is_rectangle_says():
+    sketch = RunSketch(is_rectangle=lambda e: e.label % 2 == 0)
+    sketch.add(_made_up(5, labels=(3, 4, 6)))
+    assert [sketch.track(lab)[0, 5] for lab in (3, 4, 6)] == [0.0, 1.0, 1.0]
+    assert RunSketch().tracks == {}
+
+
+def test_the_view_holds_the_scene_with_a_metre_to_spare_and_the_sensor():
+    """
+    Returns in a 2 m square behind and left of the scanner (x -4..-2, y 2..4) and three
+    far strays: the view reaches a metre beyond the square (the 0.5 and 99.5 percentiles
+    leave the strays out) and holds the scanner, half a metre inside on every side.
+    """
+    from extended_tracker.plotting import _limits
+
+    g = np.linspace(0.0, 2.0, 40)
+    square = np.column_stack([np.repeat(g, 40) - 4.0, np.tile(g, 40) + 2.0])
+    strays = np.array([[-100.0, 100.0], [-90.0, 95.0], [-95.0, 90.0]])
+    lo, hi = _limits([square, strays])
+    assert -5.0 <= lo[0] <= -4.95 and 4.95 <= hi[1] <= 5.0
+    assert (lo[1], hi[0]) == (-0.5, 0.5)
+    assert _limits([np.zeros((0, 2))]) is None
+
+
+def test_a_scene_far_wider_than_deep_gets_the_widest_picture_and_a_readable_height():
+    from extended_tracker.plotting import _figure_size
+
+    assert _figure_size((np.array([0.0, -0.5]), np.array([100.0, 0.5]))) == (16.0, 4.0)
+    assert _figure_size((np.array([-0.5, 0.0]), np.array([0.5, 100.0]))) == (4.0, 10.0)
+    assert _figure_size(None) == (10.0, 8.0)
+
 def test_plot_run_draws_a_list_or_a_sketch_alike(results, tmp_path):
     sketch = RunSketch()
     for r in results:
