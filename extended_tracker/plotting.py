@@ -116,8 +116,10 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
         ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes. Unused
         when ``results`` is a RunSketch, which applied its own while gathering.
     max_points : int
-        At most this many detections and as many background returns are drawn (and the
-        sketch's budget when ``results`` is a list).
+        The detections (and the background returns) are drawn thinned to every k-th,
+        ``k = their number // max_points``: between ``max_points`` and twice as many
+        when there are more. Also the sketch's budget when ``results`` is a list (it
+        keeps at most twice this many of each).
     min_scans : int
         Ids reported in fewer scans are drawn as faint grey traces without outlines.
 

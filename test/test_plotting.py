@@ -147,6 +147,59 @@ def test_a_scene_far_wider_than_deep_gets_the_widest_picture_and_a_readable_heig
     assert _figure_size((np.array([-0.5, 0.0]), np.array([0.5, 100.0]))) == (4.0, 10.0)
     assert _figure_size(None) == (10.0, 8.0)
 
+
+def test_what_plot_run_draws(tmp_path, monkeypatch):
+    """
+    Twelve scans of 500 returns each; label 1 in all of them, label 4 too (a box, as
+    ``is_rectangle`` says), label 2 in three only, gathered whole. Drawn: the field of
+    view as a wedge (degrees), 1,000 of the returns (every sixth), each long id's
+    trajectory in its RViz
+    marker colour with outlines (the box as a rectangle: four corners), the short id as
+    a grey trace without outlines, counted in the title.
+    """
+    import math
+
+    import matplotlib.colors
+    import matplotlib.figure
+    from matplotlib.patches import Polygon, Wedge
+
+    from extended_tracker.messages import id_rgba, outline_xy
+
+    drawn = []
+    save = matplotlib.figure.Figure.savefig
+    monkeypatch.setattr(matplotlib.figure.Figure, 'savefig',
+                        lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k)))
+    run = []
+    for k in range(12):
+        r = _made_up(500, labels=(1, 2, 4) if k < 3 else (1, 4))
+        r.estimates.X[:] = np.diag([0.09, 0.04])
+        r.estimates.m[:, 0] += 0.1 * k
+        run.append(r)
+    sketch = RunSketch(is_rectangle=lambda e: e.label == 4)       # keeps all 6,000
+    for r in run:
+        sketch.add(r)
+    plot_run(sketch, tmp_path / 'p.png', fov=(-math.pi / 2, math.pi / 2, 10.0),
+             max_points=1_000, min_scans=10)
+    (fig,) = drawn
+    ax = fig.axes[0]
+    (wedge,) = [p for p in ax.patches if isinstance(p, Wedge)]
+    assert (wedge.theta1, wedge.theta2, wedge.r) == pytest.approx((-90.0, 90.0, 10.0))
+    (cloud,) = ax.collections
+    assert len(cloud.get_offsets()) == 1_000
+    colours = [matplotlib.colors.to_rgb(line.get_color()) for line in ax.get_lines()]
+    for lab in (1, 4):
+        c = id_rgba(lab)
+        assert colours.count(pytest.approx((c['r'], c['g'], c['b']))) == 1, lab
+    assert colours.count(pytest.approx(matplotlib.colors.to_rgb('0.55'))) == 1
+    outlines = [p.get_xy() for p in ax.patches if isinstance(p, Polygon)]
+    box = outline_xy(np.array([2.1, 1.0]), 0.3, 0.2, 0.0, True)          # label 4, last
+    ellipse = outline_xy(np.array([1.1, 1.0]), 0.3, 0.2, 0.0, False)    # label 1, last
+    assert any(len(xy) == len(box) == 5 and np.allclose(xy, box) for xy in outlines)
+    assert any(np.allclose(xy[:len(ellipse)], ellipse) for xy in outlines)
+    # label 2's (centre (1.2, 1.0) in its last scan): none
+    assert not any(np.allclose(xy[:-1].mean(axis=0), [1.2, 1.0]) for xy in outlines)
+    assert '(grey: 1 ids reported in fewer than 10 scans)' in ax.get_title()
+
 def test_plot_run_draws_a_list_or_a_sketch_alike(results, tmp_path):
     sketch = RunSketch()
     for r in results:
