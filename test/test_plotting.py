@@ -93,15 +93,16 @@ def test_a_long_run_holds_bounded_memory_for_the_clouds(results):
 
 
 
-def _made_up(n_points, labels=()):
-    """A result with ``n_points`` detections and estimates of ``labels``."""
+def _made_up(n_points, labels=(), n_background=0):
+    """A result with ``n_points`` detections, ``n_background`` background returns and
+    estimates of ``labels``."""
     from types import SimpleNamespace
 
     from mixtures import estimates
 
     est = estimates(list(labels), np.array([[k, 1.0] for k in range(len(labels))]).reshape(-1, 2))
     return SimpleNamespace(estimates=est, points=np.zeros((n_points, 2)),
-                           background_points=np.zeros((0, 2)))
+                           background_points=np.ones((n_background, 2)))
 
 
 def test_the_sample_thins_once_its_cost_passes_twice_the_budget_and_not_before():
@@ -150,12 +151,13 @@ def test_a_scene_far_wider_than_deep_gets_the_widest_picture_and_a_readable_heig
 
 def test_what_plot_run_draws(tmp_path, monkeypatch):
     """
-    Twelve scans of 500 returns each; label 1 in all of them, label 4 too (a box, as
-    ``is_rectangle`` says), label 2 in three only, gathered whole. Drawn: the field of
-    view as a wedge (degrees), 1,000 of the returns (every sixth), each long id's
-    trajectory in its RViz
-    marker colour with outlines (the box as a rectangle: four corners), the short id as
-    a grey trace without outlines, counted in the title.
+    Twelve scans of 500 returns and 300 background ones each, gathered whole; label 1
+    in all of them, label 4 too (a box, as ``is_rectangle`` says), label 2 in three
+    only; ids in fewer than 12 scans are short. Drawn: the field of view as a wedge
+    (degrees), 1,000 of the returns (every sixth) and 1,200 of the background's (every
+    third), each long id's trajectory in its RViz marker colour with outlines (the box as
+    a rectangle: four corners), the short id as a grey trace without outlines, counted in
+    the title.
     """
     import math
 
@@ -171,7 +173,7 @@ def test_what_plot_run_draws(tmp_path, monkeypatch):
                         lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k)))
     run = []
     for k in range(12):
-        r = _made_up(500, labels=(1, 2, 4) if k < 3 else (1, 4))
+        r = _made_up(500, labels=(1, 2, 4) if k < 3 else (1, 4), n_background=300)
         r.estimates.X[:] = np.diag([0.09, 0.04])
         r.estimates.m[:, 0] += 0.1 * k
         run.append(r)
@@ -179,13 +181,14 @@ def test_what_plot_run_draws(tmp_path, monkeypatch):
     for r in run:
         sketch.add(r)
     plot_run(sketch, tmp_path / 'p.png', fov=(-math.pi / 2, math.pi / 2, 10.0),
-             max_points=1_000, min_scans=10)
+             max_points=1_000, min_scans=12)
     (fig,) = drawn
     ax = fig.axes[0]
     (wedge,) = [p for p in ax.patches if isinstance(p, Wedge)]
     assert (wedge.theta1, wedge.theta2, wedge.r) == pytest.approx((-90.0, 90.0, 10.0))
-    (cloud,) = ax.collections
+    background, cloud = ax.collections
     assert len(cloud.get_offsets()) == 1_000
+    assert len(background.get_offsets()) == 1_200              # of 3,600: every third
     colours = [matplotlib.colors.to_rgb(line.get_color()) for line in ax.get_lines()]
     for lab in (1, 4):
         c = id_rgba(lab)
@@ -198,7 +201,7 @@ def test_what_plot_run_draws(tmp_path, monkeypatch):
     assert any(np.allclose(xy[:len(ellipse)], ellipse) for xy in outlines)
     # label 2's (centre (1.2, 1.0) in its last scan): none
     assert not any(np.allclose(xy[:-1].mean(axis=0), [1.2, 1.0]) for xy in outlines)
-    assert '(grey: 1 ids reported in fewer than 10 scans)' in ax.get_title()
+    assert '(grey: 1 ids reported in fewer than 12 scans)' in ax.get_title()
 
 def test_plot_run_draws_a_list_or_a_sketch_alike(results, tmp_path):
     sketch = RunSketch()

@@ -81,7 +81,8 @@ def test_negative_increment():
 
 
 def test_empty_and_all_invalid_scans_give_no_points():
-    assert len(scan_to_points(make_scan([])).points) == 0
+    empty = scan_to_points(make_scan([], angle_min=0.3))
+    assert len(empty.points) == 0 and empty.angle_lo == empty.angle_hi == 0.3
     sp = scan_to_points(make_scan([np.nan, np.inf, 0.0]))
     assert len(sp.points) == 0 and sum(sp.masked.values()) == 3
 
