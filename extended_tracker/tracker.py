@@ -183,7 +183,8 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         Area (m^2) births, and clutter unless ``clutter_log_density`` is given, are spread
         over; ``model.surveillance_area`` if omitted.
     visibility : (n,) array, optional
-        Visible fraction of each component, carried into the estimates.
+        Visible fraction of each component, carried into the estimates (a label's is its
+        heaviest component's).
     centroid_offset : (n, 2) array, optional
         Expected offset of each component's visible centroid (see ``update_pairs``).
     pair_p_d : callable, optional
@@ -368,9 +369,11 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     for lab, c in _birth_cells(born, bsel, w_birth, state.next_label):
         n_det[lab] = int(stats.n[c])
     vis_of = {}
-    if visibility is not None:
-        for i in range(n_comp):
-            vis_of.setdefault(int(mix.label[i]), float(visibility[i]))
+    if visibility is not None and n_comp:
+        # each label's visible fraction is its heaviest predicted component's
+        order, is_head, _ = mix.by_label()
+        heads = order[is_head]
+        vis_of = dict(zip(mix.label[heads].tolist(), visibility[heads].tolist()))
 
     oversized = _implausible(posterior, cfg)
     diag.oversized = int(np.count_nonzero(oversized))

@@ -4,9 +4,9 @@ them, and reads its posterior back per label.
 
 Oracle: ``cphd_update`` / ``phd_update`` (each checked against enumeration in
 test_cphd_bruteforce) called with inputs written out here from their definitions: the
-predicted weights and the birth intensity ``birth.rate * dt``; the miss factors
-``1 - p_D (1 - (beta / (beta + 1))^alpha)``, the birth's at ``p_D0`` with its prior
-Gamma; ``log g = log p_D + log l`` for each gated (component, cell) pair and
+predicted weights and the birth intensity ``birth.rate * dt`` (at 10 and 40 Hz); the
+miss factors ``1 - p_D (1 - (beta / (beta + 1))^alpha)``, the birth's at ``p_D0`` with its
+prior Gamma; ``log g = log p_D + log l`` for each gated (component, cell) pair and
 ``log p_D0 + log l`` for the birth row (cells of at least ``birth.min_points``);
 ``log c^W = -|W| log A``; the clutter cardinality Poisson(``clutter_rate``). The scene's
 partitions are known: two lone returns far apart, each by a label that may have made it
@@ -31,7 +31,7 @@ AREA = 150.0
 DT = 0.1
 
 
-def scene(mode):
+def scene(mode, dt=DT):
     cfg = from_dict({
         'model': {'mode': mode},
         'partition': {'split_small': 3, 'sub_partition': False,
@@ -51,7 +51,7 @@ def scene(mode):
     # the predicted cardinality: near the weights' sum and the birth's (not Poisson)
     log_card = -0.5 * (np.arange(cfg.model.n_max + 1) - 2.5) ** 2 / 0.8
     state = evolve(FilterState.initial(cfg), mixture=mix,
-                   log_card=log_card - np.logaddexp.reduce(log_card), next_label=4, dt=DT)
+                   log_card=log_card - np.logaddexp.reduce(log_card), next_label=4, dt=dt)
     points = np.array([[3.05, 0.1], [2.95, 3.12],                   # the lone returns
                        [6.0, 1.96], [6.03, 2.0], [6.0, 2.04]])       # within d_min
     cells = [np.array([0]), np.array([1]), np.arange(2, 5), np.array([2]), np.array([3]),
@@ -60,8 +60,9 @@ def scene(mode):
 
 
 @pytest.mark.parametrize('mode', ['cphd', 'phd'])
-def test_update_state_builds_the_updates_inputs_as_defined(mode):
-    cfg, state, points, cells, partitions = scene(mode)
+@pytest.mark.parametrize('dt', [DT, 0.025])                  # 10 Hz, and a 40 Hz scanner
+def test_update_state_builds_the_updates_inputs_as_defined(mode, dt):
+    cfg, state, points, cells, partitions = scene(mode, dt)
     mix, mc, b = state.mixture, cfg.model, cfg.birth
     p_d = np.array([0.9, 0.5, 0.7])
     got, _, diag = update_state(state, points, p_d, cfg, clutter_area=AREA)
@@ -80,7 +81,7 @@ def test_update_state_builds_the_updates_inputs_as_defined(mode):
     beta_b = b.rate_shape / b.expected_rate
     birth_qd = np.log(1 - cfg.detection.p_d0
                       * (1 - (beta_b / (beta_b + 1)) ** b.rate_shape))
-    log_w = np.log(np.append(mix.w, b.rate * DT))
+    log_w = np.log(np.append(mix.w, b.rate * dt))
     log_qd = np.append(log_miss_factor(mix, p_d), birth_qd)
     log_c = -st.n * np.log(AREA)
     if mode == 'cphd':
@@ -104,3 +105,58 @@ def test_update_state_builds_the_updates_inputs_as_defined(mode):
     # the scene exercises what it is for: a detected, a half-detected and a missed label,
     # and a birth with weight
     assert expected[0] > 0.5 and det[3][~claimed].sum() > 0.1 and claimed[:2].all()
+
+
+def test_a_birth_row_is_the_birth_prior_at_the_cell_with_the_uniform_density():
+    """One row per cell, written out from the definition (``_birth_prior``'s notes): at
+    the cell's mean, at rest, position variance ``A / (2 pi)`` (a Gaussian whose density at
+    its centre is the uniform ``1 / A``), velocity variance ``birth.velocity_std^2``, the
+    Gamma and inverse Wishart of the birth prior (extent mean the floor semi-axis
+    circle), weight 1, no label yet."""
+    cfg = from_dict({'birth': {'velocity_std': 1.5, 'dof': 9.0, 'extent_semi_axis': 0.2,
+                               'rate_shape': 2.0, 'expected_rate': 8.0}})
+    points = np.array([[3.0, 0.0], [3.1, 0.1], [6.0, 2.0]])
+    st = cell_stats(points, [np.array([0, 1]), np.array([2])])
+    born = _birth_prior(st, cfg, AREA)
+    np.testing.assert_allclose(born.m, [[3.05, 0.05, 0, 0], [6.0, 2.0, 0, 0]], rtol=1e-12)
+    P = np.diag([AREA / (2 * np.pi)] * 2 + [1.5 ** 2] * 2)
+    np.testing.assert_allclose(born.P, [P, P], rtol=1e-12)
+    assert born.v.tolist() == [9.0, 9.0]
+    np.testing.assert_allclose(born.V, [(9.0 - IW_OFFSET) * 0.04 * np.eye(2)] * 2, rtol=1e-12)
+    assert born.alpha.tolist() == [2.0, 2.0] and born.beta.tolist() == [0.25, 0.25]
+    assert born.w.tolist() == [1.0, 1.0] and born.label.tolist() == [0, 0]
+
+
+def test_a_rate_scale_of_zero_counts_as_a_thousandth():
+    """A component none of whose extent is in view (rate scale 0) expects a thousandth
+    of its returns, not none: the update stays finite, as at 1e-3."""
+    cfg, state, points, _, _ = scene('cphd')
+    p_d = np.array([0.9, 0.5, 0.7])
+    zero, _, _ = update_state(state, points, p_d, cfg, rate_scale=np.zeros(3),
+                              clutter_area=AREA)
+    tiny, _, _ = update_state(state, points, p_d, cfg, rate_scale=np.full(3, 1e-3),
+                              clutter_area=AREA)
+    assert np.isfinite(zero.mixture.w).all() and np.isfinite(zero.log_card).any()
+    np.testing.assert_array_equal(zero.mixture.w, tiny.mixture.w)
+    np.testing.assert_array_equal(zero.log_card, tiny.log_card)
+
+
+def test_a_labels_visible_fraction_is_its_heaviest_components():
+    """Label 1 predicted as two components, a light one (0.1) listed first: its report
+    carries the visible fraction of the heavy one, the part it is reported by, not of
+    whichever comes first."""
+    cfg, state, points, _, _ = scene('cphd')
+    mix = state.mixture
+    first = mix.take(np.array([0]))
+    light = Mixture(np.array([0.1]), first.alpha, first.beta, first.m + [0.05, 0, 0, 0],
+                    first.P, first.v, first.V, first.label)
+    labels = np.array([1, 2, 3])
+    state = evolve(state, mixture=Mixture.concat([light, mix]),     # reported and confirmed
+                   reported=labels, reported_scans=np.full(3, 9), reported_hits=np.full(3, 9),
+                   reported_origin=mix.m[:, :2].copy(), reported_travel=np.zeros(3),
+                   reported_size=np.full(3, 0.2), shown=labels,
+                   shown_pos=mix.m[:, :2].copy(), shown_vel=np.zeros((3, 2)),
+                   shown_elapsed=np.zeros(3))
+    _, est, _ = update_state(state, points, np.array([0.9, 0.9, 0.5, 0.7]), cfg,
+                             clutter_area=AREA, visibility=np.array([0.2, 0.95, 0.5, 0.6]))
+    assert est.label.tolist() == [1, 2] and est.visibility.tolist() == [0.95, 0.5]
