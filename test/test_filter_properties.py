@@ -229,6 +229,36 @@ def test_prediction_partition_takes_only_the_returns_inside_a_gate():
     assert labels.tolist() == [0, 0, 2 + 2, 1, 2 + 3]
 
 
+
+def test_the_confident_predictions_are_labels_heaviest_parts_of_weight_half_or_more():
+    """
+    What steers prediction and sub-partitioning: each label's heaviest component when
+    it weighs at least 0.5, with its centre, its expected returns and the inverse of its
+    predicted measurement spread (position covariance, expected extent and sensor noise,
+    written out here). A label whose heaviest part is lighter steers nothing, though its
+    parts add up to more (label 4: 0.3 + 0.3); with none there is none.
+    """
+    from extended_tracker.tracker import _gates, gate_threshold, sensor_noise
+
+    P = np.diag([0.04, 0.09, 0.3, 0.3])
+    V = 6.0 * np.diag([0.09, 0.04])                    # v 12: E[X] = V / (v - 6)
+    mix = Mixture(np.array([0.7, 0.3, 0.4, 0.2, 0.3, 0.3]),
+                  np.array([12.0, 20.0, 30.0, 8.0, 9.0, 9.0]), np.ones(6),
+                  np.array([[2.0, 0.0, 0, 0], [2.5, 0.5, 0, 0], [5.0, 1.0, 0, 0],
+                            [8.0, 0.0, 0, 0], [9.0, 0.0, 0, 0], [9.0, 0.2, 0, 0]]),
+                  np.tile(P, (6, 1, 1)), np.full(6, 12.0), np.tile(V, (6, 1, 1)),
+                  np.array([1, 1, 2, 3, 4, 4]))
+    _, confident = _gates(mix, CFG)
+    assert confident['centre'].tolist() == [[2.0, 0.0]]       # label 1's 0.7
+    assert confident['rate'].tolist() == [12.0]
+    R = sensor_noise(CFG)
+    np.testing.assert_allclose(confident['gate_inv'][0],
+                               np.linalg.inv(P[:2, :2] + V / 6.0 + R), rtol=1e-12)
+    assert confident['gate'] == gate_threshold(CFG)
+    light = Mixture(mix.w[2:], mix.alpha[2:], mix.beta[2:], mix.m[2:], mix.P[2:], mix.v[2:],
+                    mix.V[2:], mix.label[2:])
+    assert _gates(light, CFG)[1] is None
+
 def test_a_cell_of_four_returns_across_two_predictions_is_also_offered_split():
     """Sub-partitioning splits a cell of at least four returns that confident predictions
     say holds several objects: four returns 0.08 m apart (closer than d_min, so one cell
@@ -618,21 +648,105 @@ def test_extraction_reports_the_map_count_of_heaviest_labels_each_by_its_heavies
     log_card[3], log_card[1] = -np.inf, 0.0             # the MAP count: one
     est = extract(evolve(FilterState.initial(cfg), mixture=mix, log_card=log_card), cfg)
     assert est.label.tolist() == [1]
+    # the most probable count, not the rounded mean: p(1) 0.4, p(3) 0.35, p(4) 0.25 (mean
+    # 2.45) reports one label
+    log_card = np.full(cfg.model.n_max + 1, -np.inf)
+    log_card[[1, 3, 4]] = np.log([0.4, 0.35, 0.25])
+    est = extract(evolve(FilterState.initial(cfg), mixture=mix, log_card=log_card), cfg)
+    assert est.label.tolist() == [1]
 
 
 def test_components_larger_than_any_object_or_lost_within_metres_are_dropped():
     """reduction.max_semi_axis (4 m) and max_position_std (3 m): a little over either is
-    implausible, a little under is kept."""
+    implausible, a little under is kept; lost along one axis is lost (the last two: std
+    3.3 m across x only, then along y only)."""
     from extended_tracker.tracker import _implausible
 
     cfg = TrackerConfig()
-    k = 4
-    semi = np.array([3.6, 4.4, 0.3, 0.3])
-    std = np.array([0.1, 0.1, 2.7, 3.3])
+    k = 6
+    semi = np.array([3.6, 4.4, 0.3, 0.3, 0.3, 0.3])
+    std_x = np.array([0.1, 0.1, 2.7, 3.3, 3.3, 0.1])
+    std_y = np.array([0.1, 0.1, 2.7, 3.3, 0.1, 3.3])
     P = np.zeros((k, 4, 4))
-    P[:, 0, 0] = P[:, 1, 1] = std ** 2
+    P[:, 0, 0], P[:, 1, 1] = std_x ** 2, std_y ** 2
     P[:, 2, 2] = P[:, 3, 3] = 0.1
     V = (20.0 - IW_OFFSET) * semi[:, None, None] ** 2 * np.eye(2)
     mix = Mixture(np.ones(k), np.full(k, 10.0), np.ones(k), np.zeros((k, 4)), P,
                   np.full(k, 20.0), V, np.arange(k))
-    assert _implausible(mix, cfg).tolist() == [False, True, False, True]
+    assert _implausible(mix, cfg).tolist() == [False, True, False, True, True, True]
+
+
+
+def test_birth_labels_one_per_set_of_cells_sharing_returns_or_the_claiming_label():
+    """
+    Birth cells that share a return (a cell and its sub-cells) are one new object, one
+    label; cells with none in common are others, labelled in order from ``next_label``.
+    A birth cell on which an existing label has more detected weight than the birth
+    takes that label (an object restarted); with less, it is new.
+    """
+    from extended_tracker.partition import PartitionSet
+    from extended_tracker.tracker import _label_births
+
+    pset = PartitionSet(cells=[np.array([0, 1]), np.array([1, 2]), np.array([5]),
+                               np.array([2, 3]), np.array([7])])
+    labels, nxt = _label_births(pset, np.array([0, 1, 2, 3]), 10)
+    assert labels.tolist() == [10, 10, 11, 10] and nxt == 12     # 0-1-3 chained by 1, 2
+    claim = np.array([0, 0, 4, 0, 6])
+    claim_w = np.array([0.0, 0.0, 0.3, 0.0, 0.2])
+    birth_w = np.array([0.5, 0.5, 0.2, 0.5, 0.3])
+    labels, nxt = _label_births(pset, np.array([2, 4]), 10, claim, claim_w, birth_w)
+    assert labels.tolist() == [4, 10] and nxt == 11
+
+
+def test_a_labels_detections_are_its_heaviest_cells_where_detection_outweighs_a_miss():
+    """``num_detections`` of a label: the size of the cell of its heaviest detected pair,
+    when its detected weight exceeds its missed weight; none otherwise."""
+    from extended_tracker.tracker import _detections_per_label
+
+    mix = Mixture(np.ones(3), np.full(3, 10.0), np.ones(3), np.zeros((3, 4)),
+                  np.tile(np.eye(4), (3, 1, 1)), np.full(3, 20.0),
+                  np.tile(np.eye(2), (3, 1, 1)), np.array([1, 1, 2]))
+    stats = cell_stats(np.zeros((9, 2)), [np.arange(2), np.arange(2, 7), np.arange(7, 9)])
+    comp, cell = np.array([0, 1, 2, 2]), np.array([0, 1, 2, 1])
+    w_det = np.array([0.2, 0.5, 0.1, 0.05])          # label 1: 0.7 detected, 2: 0.15
+    w_missed = np.array([0.1, 0.1, 0.6])               # label 1: 0.2 missed, 2: 0.6
+    assert _detections_per_label(mix, comp, cell, w_det, w_missed, stats) == {1: 5}
+    w_missed[2] = 0.1
+    assert _detections_per_label(mix, comp, cell, w_det, w_missed, stats) == {1: 5, 2: 2}
+
+
+def test_far_parts_of_a_label_become_new_objects_when_heavy_and_go_when_light():
+    """
+    ``_split_labels`` (merge distance 4 in the metric of the head's position covariance
+    plus extent, here 0.0425 m^2: 0.41 m; split weight 0.4): a part within the distance
+    stays; far parts of weight 0.4 or more get fresh labels, heaviest first, from
+    ``next_label``; a far light part is dropped; other labels are untouched.
+    """
+    from extended_tracker.tracker import _split_labels
+
+    rows = [(1, 0.9, 0.0, 0.0), (1, 0.3, 0.3, 0.0), (1, 0.5, 1.0, 0.0), (1, 0.7, 0.0, 1.5),
+            (1, 0.45, 0.45, 0.0), (1, 0.05, -1.0, 0.0), (2, 0.8, 5.0, 0.0)]
+    out, nxt = _split_labels(pedestrians(rows), 0.4, 4.0, 10)
+    assert nxt == 13
+    got = {(round(x, 2), round(y, 2)): int(lab)
+           for (x, y), lab in zip(out.m[:, :2].tolist(), out.label)}
+    assert got == {(0.0, 0.0): 1, (0.3, 0.0): 1, (0.0, 1.5): 10, (1.0, 0.0): 11,
+                   (0.45, 0.0): 12, (5.0, 0.0): 2}
+    lone = pedestrians([(1, 0.9, 0.0, 0.0), (2, 0.8, 5.0, 0.0)])
+    assert _split_labels(lone, 0.4, 4.0, 10) == (lone, 10)
+
+
+def test_a_reported_labels_existence_is_its_weight_clipped_to_one():
+    from extended_tracker.memo import evolve
+    from extended_tracker.tracker import extract
+
+    cfg = TrackerConfig()
+    mix = pedestrians([(1, 0.8, 0.0, 0.0), (1, 0.5, 0.1, 0.0), (2, 0.6, 5.0, 0.0)])
+    log_card = np.full(cfg.model.n_max + 1, -np.inf)
+    log_card[2] = 0.0
+    est = extract(evolve(FilterState.initial(cfg), mixture=mix, log_card=log_card), cfg)
+    assert est.label.tolist() == [1, 2] and est.existence.tolist() == [1.0, 0.6]
+    # the expected rate of the part reported: alpha / beta
+    est = extract(evolve(FilterState.initial(cfg), mixture=evolve(mix, beta=np.full(3, 4.0)),
+                         log_card=log_card), cfg)
+    assert est.rate.tolist() == [2.5, 2.5]

@@ -236,3 +236,22 @@ def test_a_leg_whose_pair_forms_after_its_birth_is_never_shown():
         seen.update(est.label.tolist())
         joined += diag.joined_labels
     assert joined == 1 and seen == {3}
+
+
+def test_two_parts_shown_apart_stay_shown_while_their_pair_forms():
+    """Two parts tracked and shown 0.7 m apart (not a pair), then 0.35 m: the pair forms
+    over pair_scans (3) scans, and meanwhile both stay reported (only a part never shown
+    waits for its pair); then they are one, under the senior label."""
+    cfg = leg_config(3)
+    rng = np.random.default_rng(9)
+    state = tracked_legs(cfg, (2.0, 0.35), (2.0, -0.35))
+    reported = []
+    for k in range(16):
+        gap = 0.7 if k < 10 else 0.35
+        state, est, diag = filter_step(state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0),
+                                                   gap=gap), 0.1, cfg)
+        reported.append((est.label.tolist(), diag.joined_labels))
+    joins = [k for k, (_, joined) in enumerate(reported) if joined]
+    assert len(joins) == 1 and joins[0] >= 12          # three scans at 0.35 m, from 10 on
+    assert all(labels == [3, 5] for labels, _ in reported[:joins[0]])
+    assert all(labels == [3] for labels, _ in reported[joins[0]:])

@@ -673,6 +673,33 @@ def test_only_confirmed_labels_wholly_in_shadow_are_held():
     np.testing.assert_array_equal(w_off, update(cfg, None)[0])
 
 
+
+def test_a_cell_on_a_held_components_outline_lets_the_miss_stand():
+    """
+    A confirmed label wholly in shadow is held unless a cell it is paired with lies on
+    its predicted outline: its centroid within squared distance ``HOLD_OUTLINE`` (1) of
+    the centre in the metric of the expected extent plus the position covariance plus the
+    sensor noise (written out here). Cells at squared distance 0.9 and 1.1 along x.
+    """
+    from extended_tracker.tracker import _held_p_d, HOLD_OUTLINE, sensor_noise
+
+    assert HOLD_OUTLINE == 1.0
+    cfg = from_dict({})
+    mix = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.1), label=np.array([4]))
+    pred = evolve(FilterState.initial(cfg), mixture=mix, reported=np.array([4]),
+                  reported_scans=np.array([5]), reported_hits=np.array([5]),
+                  reported_origin=mix.m[:, :2].copy(), reported_size=np.full(1, 0.25),
+                  reported_travel=np.zeros(1))
+    R = sensor_noise(cfg)
+    S = mix.expected_extent()[0] + mix.P[0, :2, :2] + R
+    held = []
+    for d2 in (0.9, 1.1):
+        x = 5.0 + np.sqrt(d2 * S[0, 0])                     # S is diagonal here
+        p_d, h = _held_p_d(pred, cfg, np.array([0.8]), np.array([True]), np.array([0]),
+                           np.array([0]), np.array([[x, 0.0]]), R)
+        held.append((h.tolist(), p_d.tolist()))
+    assert held == [([False], [0.8]), ([True], [0.0])]
+
 @pytest.mark.parametrize('hold', [True, False])
 def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
     """
