@@ -101,6 +101,52 @@ def test_the_caps_always_leave_a_partition(pts, max_parts, max_cells):
         assert sorted(members.tolist()) == list(range(len(pts)))
 
 
+
+@given(point_sets(max_n=40), st.booleans())
+def test_no_partition_is_offered_twice(pts, predicted):
+    """Duplicates removed: the distance, prediction, sub- and small-cell partitions of a
+    scan are distinct as sets of cells (a partition counted twice would count its
+    hypothesis twice in the update)."""
+    pred = None
+    if predicted and len(pts):
+        k = len(pts[:2])
+        pred = {'centre': pts[:2].copy(), 'gate_inv': np.array([np.eye(2) / 0.09] * k),
+                'gate': 13.8, 'rate': np.full(k, 6.0)}
+    pset = build_partitions(pts, CFG.partition, pred)
+    as_sets = [frozenset(tuple(pset.cells[c].tolist()) for c in part)
+               for part in pset.partitions]
+    assert len(set(as_sets)) == len(as_sets)
+
+
+def test_the_cell_cap_counts_every_cell_it_turns_away():
+    """Two pairs of returns 0.25 m apart, 5 m from each other, and room for 4 cells: the
+    finest partition takes four lone returns; the next (the pairs, two new cells) would
+    pass the cap and is turned away, two cells counted."""
+    from dataclasses import replace
+
+    cfg = replace(CFG.partition, d_min=0.1, d_max=0.8, max_cells=4, split_small=0,
+                  sub_partition=False, prediction_partition=False)
+    pts = np.array([[0.0, 0.0], [0.25, 0.0], [5.0, 0.0], [5.25, 0.0]])    # exact in binary
+    pset = build_partitions(pts, cfg)
+    assert [p.tolist() for p in pset.partitions] == [[0, 1, 2, 3]]
+    assert (pset.capped_cells, pset.capped_partitions) == (2, 0)
+
+
+def test_the_partition_cap_thins_the_thresholds_evenly_from_finest_to_coarsest():
+    """Thirty returns on a line, the gaps growing by 2 cm from 0.11 m: 30 distinct
+    thresholds in [d_min, d_max]; with room for 5 partitions they are the finest, the
+    coarsest (one cell) and three between, not the five finest."""
+    from dataclasses import replace
+
+    cfg = replace(CFG.partition, d_min=0.1, d_max=0.8, max_partitions=5, split_small=0,
+                  sub_partition=False, prediction_partition=False)
+    gaps = 0.11 + 0.02 * np.arange(29)
+    pts = np.column_stack([np.concatenate([[0.0], np.cumsum(gaps)]), np.zeros(30)])
+    pset = build_partitions(pts, cfg)
+    sizes = [len(p) for p in pset.partitions]
+    assert len(sizes) == 5 and sizes[0] == 30 and sizes[-1] == 1
+    assert pset.capped_partitions == 30 - 5
+
 def assert_same_partition_sets(a, b):
     """Two PartitionSets hold the same cells and partitions, in order, and the same cap
     counters."""
@@ -280,6 +326,29 @@ def test_a_cell_of_four_returns_across_two_predictions_is_also_offered_split():
     assert [[0, 1], [2, 3]] in cell_sets(build_partitions(pts, cfg, predicted))
     assert [[0, 1], [2, 3]] not in cell_sets(build_partitions(pts, cfg))
 
+
+
+def test_a_long_cell_is_split_into_as_many_objects_as_its_size_says():
+    """
+    Sub-partitioning splits a cell into the larger of the number of confident predictions
+    that gate it and the count its size suggests at their mean rate (the Poisson mode of
+    k with 18 returns at k x 6 a scan: 3). Eighteen returns 5 cm apart (one cell at every
+    threshold) gated by two predictions of 6 returns each: some partition holds them as
+    three cells; at 18 returns a scan each, two.
+    """
+    from dataclasses import replace
+
+    cfg = replace(CFG.partition, prediction_partition=False, split_small=0)
+    pts = np.column_stack([3.0 + 0.05 * np.arange(18), np.zeros(18)])
+
+    def most_cells(rate):
+        predicted = {'centre': np.array([[3.2, 0.0], [3.65, 0.0]]),
+                     'gate_inv': np.array([np.eye(2) / 0.25] * 2), 'gate': 13.8,
+                     'rate': np.array([rate, rate])}
+        pset = build_partitions(pts, cfg, predicted)
+        return max(len(p) for p in pset.partitions)
+
+    assert most_cells(6.0) == 3 and most_cells(18.0) == 2
 
 @given(mixtures(max_k=6))
 def test_merging_preserves_weight_and_validity(mix):

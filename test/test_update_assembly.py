@@ -160,3 +160,17 @@ def test_a_labels_visible_fraction_is_its_heaviest_components():
     _, est, _ = update_state(state, points, np.array([0.9, 0.9, 0.5, 0.7]), cfg,
                              clutter_area=AREA, visibility=np.array([0.2, 0.95, 0.5, 0.6]))
     assert est.label.tolist() == [1, 2] and est.visibility.tolist() == [0.95, 0.5]
+
+
+def test_birth_hypotheses_lighter_than_birth_min_weight_are_dropped():
+    """The scene's birth on the cluster (weight over 0.1) is a new label; with
+    ``birth.min_weight`` 1 no birth hypothesis is kept, whatever the prune weight."""
+    from dataclasses import replace
+
+    cfg, state, points, _, _ = scene('cphd')
+    p_d = np.array([0.9, 0.5, 0.7])
+    got, _, diag = update_state(state, points, p_d, cfg, clutter_area=AREA)
+    assert (got.mixture.label >= 4).any() and diag.births >= 1
+    strict = replace(cfg, birth=replace(cfg.birth, min_weight=1.0))
+    got, _, diag = update_state(state, points, p_d, strict, clutter_area=AREA)
+    assert not (got.mixture.label >= 4).any() and diag.births == 0
