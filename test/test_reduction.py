@@ -233,3 +233,5 @@ def test_the_component_cap_keeps_the_heaviest():
                        enumerate([0.2, 0.9, 0.4, 0.7, 0.1])])
     out, capped = reduce_mixture(mix, 1e-6, 4.0, 3)
     assert capped == 2 and sorted(out.label.tolist()) == [2, 3, 4]
+    # in the order they had (ties of weight later break by position), not by weight
+    assert out.label.tolist() == [2, 3, 4] and out.w.tolist() == [0.9, 0.4, 0.7]
