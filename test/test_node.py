@@ -184,13 +184,19 @@ def test_reset_service_drops_the_tracks_and_their_markers(harness):
     client.destroy()
 
 
+
+def zero_increment(scan):
+    """A copy of ``scan`` as a LaserScan with angle_increment 0: a malformed scan."""
+    bad = copy.deepcopy(ros_scan(scan))
+    bad.angle_increment = 0.0
+    return bad
+
 def test_robustness_every_case_counted_never_a_crash(harness):
     data = simulate(tutorial_scene(), 2.0, seed=0)
     scans = [ros_scan(s) for s, _ in data]
     for s in scans[:10]:
         harness.send(s)
-    bad = copy.deepcopy(scans[10])
-    bad.angle_increment = 0.0                             # malformed
+    bad = zero_increment(scans[10])                       # malformed
     out = harness.send(bad)
     assert len(out.objects) == len(harness.tracks[-2].objects)   # estimates kept
     short = copy.deepcopy(scans[11])
@@ -237,8 +243,7 @@ def test_diagnostics_give_each_scan_its_figures_and_the_event_counts(harness):
     assert int(values['detections']) == int(np.isfinite(data[11][0].ranges).sum())
     assert float(values['processing_time_ms']) == round(reply.processing_time * 1e3, 3) > 0
     assert not [k for k in values if k.startswith('count_')]
-    bad = ros_scan(data[12][0])
-    bad.angle_increment = 0.0
+    bad = zero_increment(data[12][0])
     for _ in range(2):
         harness.send(bad)
     st = harness.diagnostics[-1].status[0]
@@ -903,8 +908,7 @@ def test_an_event_is_logged_once_then_summarised_and_a_bug_at_error(harness, mon
     rec = RecordingLogger()
     monkeypatch.setattr(harness.node, 'get_logger', lambda: rec)
     data = simulate(tutorial_scene(), 0.5, seed=0)
-    bad = ros_scan(data[0][0])
-    bad.angle_increment = 0.0
+    bad = zero_increment(data[0][0])
     for _ in range(3):
         harness.send(bad)
     (first, kw1), (second, kw2), (third, kw3) = rec.at('warning')
