@@ -210,6 +210,8 @@ def test_travel_that_protects_counts_only_scans_with_returns():
     assert np.allclose(state.confirmed_travel(np.array([7]), from_dict({}).extraction), 1.2)
     not_yet = from_dict({'extraction': {'confirm_scans': 13}}).extraction
     assert state.confirmed_travel(np.array([7]), not_yet).tolist() == [-1.0]  # not 13 in a row
+    state = _report(state, 0.3, 3)                        # and back: the farthest counts
+    assert np.allclose(state.confirmed_travel(np.array([7]), from_dict({}).extraction), 1.2)
 
 
 def test_travel_is_counted_beyond_the_first_extent():

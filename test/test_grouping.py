@@ -41,12 +41,16 @@ def test_an_l_of_two_thin_pieces_is_reported_as_the_rectangle_around_it():
     est = pieces([(3, (0.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0),
                   (4, (4.0, 4.0), (4.3, 4.0), 0.1, (0.0, 1.0), 5.0),
                   (7, (0.0, 0.05), (0.0, 1.8), 0.005, (5.2, 0.1), 10.0)])
+    est.existence[:], est.visibility[:] = [0.8, 0.9, 0.95], [0.4, 1.0, 0.7]
     out, n = group_segments(est, np.array([5, 9, 20]), gap=0.5, speed=2.0)
     assert n == 1 and out.label.tolist() == [3, 4]       # the longest piece's label
     car = out.take(np.array([0]))
-    # the rectangle's centre and second moments (its width has the pieces' 1 cm added)
-    np.testing.assert_allclose(car.m[0, :2], [2.25, 0.9], atol=0.01)
-    np.testing.assert_allclose(car.X[0], np.diag([4.5 ** 2 / 3, 1.8 ** 2 / 3]), atol=0.02)
+    # the rectangle's centre and second moments: its ends' box, 4.5 m by 1.8 m, the width
+    # with the pieces' thickness (1 cm) added
+    np.testing.assert_allclose(car.m[0, :2], [2.25, 0.9], atol=1e-9)
+    np.testing.assert_allclose(car.X[0], np.diag([4.5 ** 2 / 3, 1.81 ** 2 / 3]), atol=1e-9)
+    # existence and visibility the pieces' largest
+    assert (car.existence[0], car.visibility[0]) == (0.95, 0.7)
     np.testing.assert_allclose(car.m[0, 2:], [(30 * 5.0 + 10 * 5.2) / 40, 10 * 0.1 / 40])
     assert car.rate[0] == 40.0 and car.num_detections[0] == 20
     # the pedestrian is untouched
@@ -55,6 +59,16 @@ def test_an_l_of_two_thin_pieces_is_reported_as_the_rectangle_around_it():
     np.testing.assert_array_equal(ped.X, est.X[1:2])
 
 
+
+
+def test_three_pieces_of_one_contour_are_one_report_and_two_grouped():
+    """A U: a car's side and both its ends, all thin and moving together: one report, the
+    side's, and the count says two pieces went into it."""
+    est = pieces([(3, (0.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0),
+                  (7, (0.0, 0.05), (0.0, 1.8), 0.005, (5.0, 0.0), 10.0),
+                  (9, (4.5, 0.05), (4.5, 1.8), 0.005, (5.0, 0.0), 10.0)])
+    out, n = group_segments(est, np.array([5, 5, 5]), gap=0.5, speed=2.0)
+    assert n == 2 and out.label.tolist() == [3] and out.rate[0] == 50.0
 
 def test_between_pieces_of_one_length_the_most_senior_then_the_smaller_label_reports():
     # an L of two 2 m pieces (a square object seen across its corner)

@@ -19,8 +19,9 @@ from mixtures import estimates, pedestrians as mixture
 
 
 def lost_state(shown, pos, vel=None, elapsed=None, reported=(), reported_scans=(),
-               recent_from=9):
-    """Labels ``shown`` last shown at ``pos``; labels from ``recent_from`` on are young."""
+               recent_from=9, clock=None):
+    """Labels ``shown`` last shown at ``pos``; labels from ``recent_from`` on are young
+    (or as the label ``clock`` says)."""
     k = len(shown)
     return FilterState(
         Mixture.empty(), np.zeros(1), next_label=12,
@@ -32,7 +33,7 @@ def lost_state(shown, pos, vel=None, elapsed=None, reported=(), reported_scans=(
         shown=np.array(shown, dtype=np.int64), shown_pos=np.array(pos, dtype=float),
         shown_vel=np.zeros((k, 2)) if vel is None else np.array(vel, dtype=float),
         shown_elapsed=np.zeros(k) if elapsed is None else np.array(elapsed, dtype=float),
-        label_clock=((0.5, recent_from),))
+        label_clock=((0.5, recent_from),) if clock is None else clock)
 
 
 CFG = from_dict({'extraction': {'handover_time': 1.0, 'handover_distance': 0.8}})
@@ -74,6 +75,10 @@ def test_an_established_label_never_takes_a_lost_id():
     _, out_est, _, n = hand_over(lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], recent_from=7),
                                  new, est, CFG)
     assert n == 1 and out_est.label.tolist() == [5]
+    # the counter's older readings are beyond the window: 7, created 1.5 s ago, is not
+    # young, whatever was created in the window (from 9 on)
+    older = lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], clock=((1.5, 3), (0.5, 9)))
+    assert hand_over(older, new, est, CFG)[3] == 0
 
 
 def test_an_id_passes_only_to_a_newer_label():
@@ -111,6 +116,9 @@ def test_too_far_too_late_or_switched_off_means_no_handover():
     # the speed limit has the last word: 0.85 m in 0.5 s is more than 0.5 m/s allows
     slow = from_dict({'extraction': {'max_speed': 0.5, 'jump_slack': 0.0}})
     assert hand_over(moving, new, est, slow)[3] == 0
+    for max_speed, passes in ((1.6, 0), (1.8, 1)):           # 0.8 and 0.9 m in 0.5 s
+        cfg = from_dict({'extraction': {'max_speed': max_speed, 'jump_slack': 0.0}})
+        assert hand_over(moving, new, est, cfg)[3] == passes, max_speed
 
 
 def test_nearest_pairs_first_one_to_one_and_estimates_stay_in_label_order():

@@ -99,6 +99,21 @@ def test_shown_positions_age_and_dead_labels_are_forgotten():
     assert out.shown.tolist() == [1, 3, 6, 8]
     np.testing.assert_allclose(out.shown_elapsed, [0.4, 0.0, 0.0, 0.2])
     assert remember_shown(out, new, shown, handover_time=0.2).shown.tolist() == [1, 3, 6]
+    # a label joined into another (a leg into its walker) is part of that object, not
+    # lost: forgotten at once, however recently shown
+    joined = remember_shown(old, new, shown, handover_time=0.2, joined=np.array([1, 8]))
+    assert joined.shown.tolist() == [3, 6]
+
+
+def test_the_label_clock_keeps_the_counter_of_each_scan_within_the_handover_time():
+    """At the start of each scan of the last ``handover_time`` seconds, the next label
+    then: a reading that ages past the window is dropped, this scan's is added."""
+    old = FilterState(Mixture.empty(), np.zeros(1), next_label=12,
+                      label_clock=((0.95, 4), (0.5, 8), (0.1, 10)))
+    new = FilterState(Mixture.empty(), np.zeros(1), dt=0.1)
+    out = remember_shown(old, new, estimates([], np.zeros((0, 2))), handover_time=1.0)
+    np.testing.assert_allclose([ago for ago, _ in out.label_clock], [0.6, 0.2, 0.0])
+    assert [lab for _, lab in out.label_clock] == [8, 10, 12]
 
 
 def _occlusion_then_newcomer(max_speed, newcomer_y, gap=15, seed=0, max_accel=10.0):

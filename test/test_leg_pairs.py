@@ -255,3 +255,55 @@ def test_two_parts_shown_apart_stay_shown_while_their_pair_forms():
     assert len(joins) == 1 and joins[0] >= 12          # three scans at 0.35 m, from 10 on
     assert all(labels == [3, 5] for labels, _ in reported[:joins[0]])
     assert all(labels == [3] for labels, _ in reported[joins[0]:])
+
+
+@pytest.mark.parametrize('mode', ['cphd', 'phd'])
+def test_a_join_thins_the_cardinality_by_the_junior_weight_it_drops(mode):
+    """Two parts of weights 0.9 and 0.6 joined into one of 0.9: in CPHD mode the
+    cardinality pmf loses the 0.6 dropped (cphd.thin_cardinality, checked against
+    enumeration above), in PHD mode there is none to thin."""
+    from extended_tracker.identity import join_pairs
+    from extended_tracker.state import Estimates
+    from extended_tracker.tracker import extract
+
+    cfg = leg_config(3, mode)
+    state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
+    log_card = np.log(np.array([0.1, 0.3, 0.6] + [0.0] * (cfg.model.n_max - 2)) + 1e-300)
+    state = replace(state, mixture=replace(state.mixture, w=np.array([0.9, 0.6])),
+                    log_card=log_card, pairs=np.array([[3, 5]]), pair_runs=np.array([2]))
+    est = extract(replace(state, log_card=np.log(np.eye(cfg.model.n_max + 1)[2] + 1e-300)),
+                  cfg)
+    assert isinstance(est, Estimates) and est.label.tolist() == [3, 5]
+    out, est, joined, _ = join_pairs(state, est, cfg)
+    assert joined.tolist() == [5] and est.label.tolist() == [3]
+    assert out.mixture.label.tolist() == [3] and out.mixture.w.tolist() == [0.9]
+    want = thin_cardinality(log_card, 0.6) if mode == 'cphd' else log_card
+    np.testing.assert_allclose(np.exp(out.log_card), np.exp(want), atol=1e-12)
+
+
+def _parts(labels, xs, semis):
+    """Reports of ``labels`` at (x, 0), at rest, round with semi-axes ``semis``."""
+    from mixtures import estimates
+
+    est = estimates(list(labels), np.column_stack([xs, np.zeros(len(xs))]))
+    est.X[:] = np.array([s ** 2 * np.eye(2) for s in semis])
+    return est
+
+
+def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
+    """
+    ``join_pairs`` (pair_semi_axis 0.3 m, pair_distance 0.6 m): a leg-sized report
+    beside a walker-sized one (0.45 m) is a candidate pair, two walker-sized ones are not;
+    three leg-sized reports in a row (0.3 m, then 0.2 m apart) pair the nearest two,
+    one to one.
+    """
+    from extended_tracker.identity import join_pairs
+
+    cfg = leg_config(3)
+    state = replace(FilterState.initial(cfg), reported=np.array([3, 5, 7]),
+                    reported_scans=np.array([9, 9, 9]))
+    forming = [join_pairs(state, _parts([3, 5], [0.0, 0.4], semis), cfg)[0].pairs.tolist()
+               for semis in ((0.45, 0.1), (0.45, 0.45))]
+    assert forming == [[[3, 5]], []]
+    out = join_pairs(state, _parts([3, 5, 7], [0.0, 0.3, 0.5], (0.1, 0.1, 0.1)), cfg)[0]
+    assert out.pairs.tolist() == [[5, 7]] and out.pair_runs.tolist() == [1]
