@@ -373,6 +373,12 @@ def test_prediction_keeps_means_and_forgets_per_second():
     np.testing.assert_allclose(b.alpha, c.alpha, rtol=1e-12)
     np.testing.assert_allclose(b.v, c.v, rtol=1e-12)
     np.testing.assert_allclose(b.w, c.w, rtol=1e-12)
+    # the time constants themselves (section 2): alpha e^{-T/tau_r}, 6 + e^{-T/tau_X}(v - 6),
+    # survival p_S^T
+    np.testing.assert_allclose(c.alpha, mix.alpha * np.exp(-1.0 / 1.5), rtol=1e-12)
+    np.testing.assert_allclose(c.v, IW_OFFSET + np.exp(-1.0 / 2.5) * (mix.v - IW_OFFSET),
+                               rtol=1e-12)
+    np.testing.assert_allclose(a.w, mix.w * 0.99 ** 0.1, rtol=1e-12)
     # means of rate and extent kept (trap 4: V rescaled with v)
     np.testing.assert_allclose(a.expected_rate(), mix.expected_rate(), rtol=1e-12)
     np.testing.assert_allclose(a.expected_extent(), mix.expected_extent(), rtol=1e-12)
@@ -494,3 +500,14 @@ def test_the_gate_threshold_is_the_chi_square_quantile_and_1_means_no_gate():
     with warnings.catch_warnings():
         warnings.simplefilter('error')
         assert gate_threshold(from_dict({'partition': {'gate_probability': 1.0}})) == np.inf
+
+
+def test_inv2_and_det2_equal_numpys_for_any_2x2():
+    """The closed-form inverse and determinant of (..., 2, 2) matrices, symmetric or not
+    (the docstring promises any), against numpy's LU."""
+    from extended_tracker.ggiw import det2, inv2
+
+    rng = np.random.default_rng(8)
+    A = rng.normal(size=(4, 3, 2, 2))
+    np.testing.assert_allclose(inv2(A), np.linalg.inv(A), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(det2(A), np.linalg.det(A), rtol=1e-10, atol=1e-12)
