@@ -1,4 +1,5 @@
-"""Test-wide settings: DDS stays on this machine, Hypothesis is deterministic."""
+"""Test-wide settings: DDS stays on this machine, Hypothesis is deterministic; the
+``saved_figures`` fixture."""
 
 import atexit
 import os
@@ -21,6 +22,7 @@ if 'ROS_LOG_DIR' not in os.environ:
     atexit.register(shutil.rmtree, _logs, ignore_errors=True)
 
 from hypothesis import HealthCheck, settings  # noqa: E402
+import pytest  # noqa: E402
 
 settings.register_profile(
     'deterministic',
@@ -31,3 +33,20 @@ settings.register_profile(
     database=None,
 )
 settings.load_profile('deterministic')
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """The matplotlib figures saved while the test runs, in order (each still written):
+    what a picture draws is read off the figure, not off the PNG's pixels."""
+    import matplotlib.figure
+
+    saved = []
+    save = matplotlib.figure.Figure.savefig
+
+    def keep(fig, *args, **kwargs):
+        saved.append(fig)
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, 'savefig', keep)
+    return saved

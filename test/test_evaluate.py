@@ -176,25 +176,15 @@ def test_a_replayed_bag_is_scored_over_the_region_its_truth_file_gives(tmp_path)
     assert all(g.total == 0.0 and g.n_false == 0 == g.n_missed for g in per)
 
 
-def test_the_evaluate_plot_is_gospa_and_the_counts_against_seconds(tmp_path, monkeypatch):
+def test_the_evaluate_plot_is_gospa_and_the_counts_against_seconds(tmp_path, saved_figures):
     """What ``evaluate --plot`` draws: per scan, GOSPA and the localisation part's root
     on top, the true and the estimated count below, against seconds from the first
     scored scan."""
-    import matplotlib.figure
-
-    drawn = []
-    save = matplotlib.figure.Figure.savefig
-
-    def keep(fig, *args, **kwargs):
-        drawn.append(fig)
-        return save(fig, *args, **kwargs)
-
-    monkeypatch.setattr(matplotlib.figure.Figure, 'savefig', keep)
     write_sim_bag(tmp_path / 'scans', 'occlusion', seed=0, duration=3.0)
     replay(tmp_path / 'scans', tmp_path / 'out', from_dict({}), progress=False)
     _, per, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'scans' / 'truth.json',
                              plot=tmp_path / 'g.png')
-    (fig,) = drawn
+    (fig,) = saved_figures
     top, bottom = fig.axes
     seconds = np.arange(len(per)) * 0.1                        # the scene's 10 Hz
     gospa_line, loc_line = top.get_lines()

@@ -149,7 +149,7 @@ def test_a_scene_far_wider_than_deep_gets_the_widest_picture_and_a_readable_heig
     assert _figure_size(None) == (10.0, 8.0)
 
 
-def test_what_plot_run_draws(tmp_path, monkeypatch):
+def test_what_plot_run_draws(tmp_path, saved_figures):
     """
     Twelve scans of 500 returns and 300 background ones each, gathered whole; label 1
     in all of them, label 4 too (a box, as ``is_rectangle`` says), label 2 in three
@@ -162,15 +162,10 @@ def test_what_plot_run_draws(tmp_path, monkeypatch):
     import math
 
     import matplotlib.colors
-    import matplotlib.figure
     from matplotlib.patches import Polygon, Wedge
 
     from extended_tracker.messages import id_rgba, outline_xy
 
-    drawn = []
-    save = matplotlib.figure.Figure.savefig
-    monkeypatch.setattr(matplotlib.figure.Figure, 'savefig',
-                        lambda fig, *a, **k: (drawn.append(fig), save(fig, *a, **k)))
     run = []
     for k in range(12):
         r = _made_up(500, labels=(1, 2, 4) if k < 3 else (1, 4), n_background=300)
@@ -182,7 +177,7 @@ def test_what_plot_run_draws(tmp_path, monkeypatch):
         sketch.add(r)
     plot_run(sketch, tmp_path / 'p.png', fov=(-math.pi / 2, math.pi / 2, 10.0),
              max_points=1_000, min_scans=12)
-    (fig,) = drawn
+    (fig,) = saved_figures
     ax = fig.axes[0]
     (wedge,) = [p for p in ax.patches if isinstance(p, Wedge)]
     assert (wedge.theta1, wedge.theta2, wedge.r) == pytest.approx((-90.0, 90.0, 10.0))
@@ -219,7 +214,7 @@ def _png_size(path):
     return int.from_bytes(head[:4], 'big'), int.from_bytes(head[4:], 'big')
 
 
-def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path, monkeypatch):
+def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path, saved_figures):
     """
     A scene about as wide as deep (the demo room) keeps the 10 x 8 inch picture; a
     corridor 21 m long and 3 m wide (the Freiburg recording's kind) gets a wide one, whose
@@ -239,18 +234,9 @@ def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path, mo
         estimates=Estimates.empty(),
         points=np.column_stack([rng.uniform(0, 20, 500), rng.uniform(-1.5, 1.5, 500)]),
         background_points=np.zeros((0, 2)))
-    shares = []
-    real_savefig = plt.Figure.savefig
-
-    def savefig(fig, path, *args, **kwargs):
-        # the share of the figure the axes take once drawn
-        real_savefig(fig, path, *args, **kwargs)
-        box = fig.axes[0].get_position()
-        shares.append(box.width * box.height)
-
-    monkeypatch.setattr(plt.Figure, 'savefig', savefig)
     plot_run([corridor], tmp_path / 'corridor.png', title='t')
-    monkeypatch.undo()
+    box = saved_figures[-1].axes[0].get_position()      # the share the axes take, drawn
+    share = box.width * box.height
     w, h = _png_size(tmp_path / 'corridor.png')
     assert w >= 3 * h
     fig, ax = plt.subplots(figsize=(10, 8))            # the corridor in the 10 x 8 inches
@@ -261,7 +247,7 @@ def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path, mo
     fig.canvas.draw()
     box = ax.get_position()
     plt.close(fig)
-    assert shares[0] > 2 * box.width * box.height
+    assert share > 2 * box.width * box.height
 
 
 def test_the_image_suffixes_are_those_savefig_writes_less_pgf():
