@@ -1,5 +1,5 @@
-"""Small hand-made GGIW mixtures and estimates for the label tests, and a comparison of two
-filter states (imported by the tests, not a test)."""
+"""Small hand-made GGIW mixtures, estimates and report records for the label tests, and a
+comparison of two filter states (imported by the tests, not a test)."""
 
 import numpy as np
 
@@ -38,3 +38,16 @@ def assert_same_posterior(got, want):
         np.testing.assert_allclose(getattr(got.mixture, f), getattr(want.mixture, f),
                                    rtol=1e-12, atol=1e-14)
     np.testing.assert_allclose(got.log_card, want.log_card, rtol=1e-12, atol=1e-12)
+
+
+def reported(state, labels, scans, origin, size=0.25):
+    """``state`` with ``labels`` reported in the last ``scans`` scans in a row, returns
+    updating each of them every time, first at ``origin`` (k, 2) with semi-major axis
+    ``size``, and nothing travelled: their report record as ``record_reports`` keeps it."""
+    from extended_tracker.memo import evolve
+
+    labels, scans = np.asarray(labels, np.int64), np.asarray(scans, np.int64)
+    k = len(labels)
+    return evolve(state, reported=labels, reported_scans=scans, reported_hits=scans.copy(),
+                  reported_origin=np.array(origin, dtype=float).reshape(k, 2),
+                  reported_size=np.full(k, size), reported_travel=np.zeros(k))

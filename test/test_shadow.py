@@ -23,7 +23,7 @@ from extended_tracker.tracker import (filter_step, gate_threshold, predict_state
                                       sensor_noise, update_state)
 
 from lastbit import assert_same_tracks
-from mixtures import assert_same_posterior
+from mixtures import assert_same_posterior, reported
 
 CFG = from_dict({'detection': {'p_d0': 0.9, 'max_widen': 0.0}})
 
@@ -651,10 +651,8 @@ def test_only_confirmed_labels_wholly_in_shadow_are_held():
     cfg = from_dict({'model': {'mode': 'phd'}})
     mix = two_components((5.0, 0.0), (5.0, 2.0))
     mix = evolve(mix, label=np.array([4, 7]))
-    pred = evolve(FilterState.initial(cfg), mixture=mix, reported=np.array([4, 7]),
-                  reported_scans=np.array([5, 1]), reported_hits=np.array([5, 1]),
-                  reported_origin=mix.m[:, :2].copy(), reported_size=np.full(2, 0.25),
-                  reported_travel=np.zeros(2))
+    pred = reported(evolve(FilterState.initial(cfg), mixture=mix), [4, 7], [5, 1],
+                    mix.m[:, :2])
     assert pred.confirmed_rows(cfg.extraction).tolist() == [True, False]
     none, p_d = np.zeros((0, 2)), np.full(2, 0.9)
 
@@ -686,10 +684,7 @@ def test_a_cell_on_a_held_components_outline_lets_the_miss_stand():
     assert HOLD_OUTLINE == 1.0
     cfg = from_dict({})
     mix = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.1), label=np.array([4]))
-    pred = evolve(FilterState.initial(cfg), mixture=mix, reported=np.array([4]),
-                  reported_scans=np.array([5]), reported_hits=np.array([5]),
-                  reported_origin=mix.m[:, :2].copy(), reported_size=np.full(1, 0.25),
-                  reported_travel=np.zeros(1))
+    pred = reported(evolve(FilterState.initial(cfg), mixture=mix), [4], [5], mix.m[:, :2])
     R = sensor_noise(cfg)
     S = mix.expected_extent()[0] + mix.P[0, :2, :2] + R
     held = []

@@ -27,6 +27,8 @@ from extended_tracker.memo import evolve
 from extended_tracker.state import FilterState
 from extended_tracker.tracker import _birth_prior, sensor_noise, update_state
 
+from mixtures import reported
+
 AREA = 150.0
 DT = 0.1
 
@@ -151,12 +153,10 @@ def test_a_labels_visible_fraction_is_its_heaviest_components():
     light = Mixture(np.array([0.1]), first.alpha, first.beta, first.m + [0.05, 0, 0, 0],
                     first.P, first.v, first.V, first.label)
     labels = np.array([1, 2, 3])
-    state = evolve(state, mixture=Mixture.concat([light, mix]),     # reported and confirmed
-                   reported=labels, reported_scans=np.full(3, 9), reported_hits=np.full(3, 9),
-                   reported_origin=mix.m[:, :2].copy(), reported_travel=np.zeros(3),
-                   reported_size=np.full(3, 0.2), shown=labels,
+    state = evolve(state, mixture=Mixture.concat([light, mix]), shown=labels,
                    shown_pos=mix.m[:, :2].copy(), shown_vel=np.zeros((3, 2)),
                    shown_elapsed=np.zeros(3))
+    state = reported(state, labels, [9, 9, 9], mix.m[:, :2], size=0.2)   # and confirmed
     _, est, _ = update_state(state, points, np.array([0.9, 0.9, 0.5, 0.7]), cfg,
                              clutter_area=AREA, visibility=np.array([0.2, 0.95, 0.5, 0.6]))
     assert est.label.tolist() == [1, 2] and est.visibility.tolist() == [0.95, 0.5]
