@@ -381,6 +381,13 @@ def test_thin_object_seen_in_some_scans_becomes_a_second_background_range():
     assert keep.all() and np.isnan(state.second).all()
 
 
+
+def chair_reveals_box():
+    """A chair 1.5 m away until 4 s, in front of a box 3.5 m away and a wall at 8 m."""
+    return Scene((SimObject((1.5, 0.0), a=0.3, b=0.3, kind='chair', t_end=4.0),
+                  SimObject((3.5, 0.0), a=0.3, b=0.3, kind='box')),
+                 walls=(((8.0, -5.0), (8.0, 5.0)),), laser=LaserSpec())
+
 def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dropped():
     """
     Something stands 1.5 m away at start-up and is learned; it leaves at 4 s and reveals a
@@ -389,10 +396,7 @@ def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dr
     after it appeared; its track is dropped in that scan (``absorbed``) instead of
     coasting, and nothing is reported from 6.5 s on.
     """
-    wall = (((8.0, -5.0), (8.0, 5.0)),)
-    chair = SimObject((1.5, 0.0), a=0.3, b=0.3, kind='chair', t_end=4.0)
-    box = SimObject((3.5, 0.0), a=0.3, b=0.3, kind='box')
-    hist = run(Scene((chair, box), walls=wall, laser=LaserSpec()), 9.0, from_dict({}), seed=5)
+    hist = run(chair_reveals_box(), 9.0, from_dict({}), seed=5)
     shown = [k for k, (_, res) in enumerate(hist)
              if len(res.estimates) and np.linalg.norm(res.estimates.m[:, :2] - (3.5, 0.0),
                                                       axis=1).min() < 0.5]
@@ -769,13 +773,10 @@ def test_the_region_birth_of_a_scan_is_never_absorbed():
     are learned and its tracks absorbed, the region's birth of that very scan is not among
     them (it is no track that stood on those returns), and is in the posterior.
     """
-    wall = (((8.0, -5.0), (8.0, 5.0)),)
-    chair = SimObject((1.5, 0.0), a=0.3, b=0.3, kind='chair', t_end=4.0)
-    box = SimObject((3.5, 0.0), a=0.3, b=0.3, kind='box')
     cfg = from_dict({'birth': {'regions': [3.5, 0.0, 0.3]}})
     state = PipelineState.initial(cfg)
     absorbed = 0
-    for scan, _ in simulate(Scene((chair, box), walls=wall, laser=LaserSpec()), 6.0, seed=5):
+    for scan, _ in simulate(chair_reveals_box(), 6.0, seed=5):
         first_new = state.filter.next_label
         state, res = step(state, scan, cfg)
         if res.diagnostics['absorbed']:
