@@ -1,5 +1,6 @@
 """The benchmark script's own output (figures are printed, never asserted)."""
 
+from pathlib import Path
 import re
 
 import numpy as np
@@ -273,7 +274,8 @@ def test_the_memory_figures_are_the_kernels_resident_set_in_mib():
 
     from extended_tracker.bench import _peak_rss_mb, _rss_mb
 
-    status = dict(line.split(':', 1) for line in open('/proc/self/status'))
+    status = dict(line.split(':', 1) for line in Path('/proc/self/status').read_text()
+                  .splitlines())
     now = int(status['VmRSS'].split()[0]) / 1024
     assert _rss_mb() == pytest.approx(now, abs=2.0)
     assert _peak_rss_mb() == pytest.approx(
