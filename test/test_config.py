@@ -15,6 +15,7 @@ from extended_tracker.errors import ConfigError
     ({'model.n_max': 201}, 'model.n_max must be <= 200 objects, got 201'),
     ({'model.n_max': True}, 'model.n_max must be an integer, got True'),
     ({'partition.d_max': -1.0}, 'partition.d_max must be > 0.0 m, got -1.0'),
+    ({'partition.d_min': -0.1}, 'partition.d_min must be >= 0.0 m, got -0.1'),
     ({'model.mode': 'x'}, "model.mode must be one of ('cphd', 'phd'), got 'x'"),
     ({'background.enabled': 'yes'}, 'background.enabled must be true or false'),
     ({'background.enabled': 1}, 'background.enabled must be true or false, got 1'),
@@ -44,14 +45,71 @@ def test_unknown_keys_and_sections_are_refused():
         from_flat({'rho': 1.0})
     with pytest.raises(ConfigError, match='section model must be a mapping, got 3'):
         from_dict({'model': 3})
+    # an empty sequence or a zero is no section either (YAML's bare `model:` is None: the
+    # defaults)
+    for bad in ([], 0, ''):
+        with pytest.raises(ConfigError, match='section model must be a mapping'):
+            from_dict({'model': bad})
+    assert from_dict({'model': None}) == from_dict({'model': {}}) == TrackerConfig()
 
 
 def test_round_trips_and_documentation():
     cfg = TrackerConfig()
     assert from_flat(to_flat(cfg)) == cfg
-    assert from_dict({'model': {'rho': 1}}).model.rho == 1.0      # ints accepted as floats
+    # ints accepted as floats, and stored as floats: a ROS parameter declared from the
+    # value takes its type from it
+    rho = from_dict({'model': {'rho': 1}}).model.rho
+    assert rho == 1.0 and type(rho) is float
+    assert type(from_flat({'model.n_max': 7}).model.n_max) is int
     for name, f, _ in iter_leaves(cfg):
         assert f.metadata['description'], name
+
+
+def _with(flat: dict, name: str, value) -> dict:
+    """``flat`` with ``name`` set to ``value``, and d_max raised to its top when d_min is
+    set (the one check across fields: d_min must not exceed d_max)."""
+    out = dict(flat, **{name: value})
+    if name == 'partition.d_min':
+        out['partition.d_max'] = 20.0
+    return out
+
+
+def test_every_numeric_bound_is_where_its_declaration_puts_it():
+    """Each number's declared range, read from the field's metadata, is the range taken:
+    a closed end accepted and a step past it refused, an open end refused."""
+    defaults = to_flat(TrackerConfig())
+    checked = 0
+    for name, f, value in iter_leaves(TrackerConfig()):
+        meta = f.metadata
+        if isinstance(value, (bool, str, list)):
+            continue
+        step = 1 if isinstance(value, int) else 1e-6 * max(1.0, abs(meta['max']))
+        lo, hi = meta['min'], meta['max']
+        assert to_flat(from_flat(_with(defaults, name, hi)))[name] == hi
+        with pytest.raises(ConfigError, match=f'{name} must be <= '):
+            from_flat(_with(defaults, name, hi + step))
+        if meta['lo_open']:
+            with pytest.raises(ConfigError, match=f'{name} must be > '):
+                from_flat(_with(defaults, name, lo))
+        else:
+            assert to_flat(from_flat(_with(defaults, name, lo)))[name] == lo
+            with pytest.raises(ConfigError, match=f'{name} must be >= '):
+                from_flat(_with(defaults, name, lo - step))
+        checked += 1
+    assert checked > 60
+
+
+def test_d_min_may_equal_d_max():
+    """One distance threshold is a valid partitioning: d_min only must not exceed d_max."""
+    cfg = from_flat({'partition.d_min': 0.5, 'partition.d_max': 0.5})
+    assert cfg.partition.d_min == cfg.partition.d_max == 0.5
+
+
+def test_list_defaults_are_not_shared():
+    """Each config holds its own list: growing one config's regions leaves the next
+    config's defaults alone."""
+    a, b = TrackerConfig(), TrackerConfig()
+    assert a.birth.regions == b.birth.regions == [] and a.birth.regions is not b.birth.regions
 
 
 def test_yaml_errors_are_config_errors(tmp_path):
