@@ -272,7 +272,8 @@ def _check_leaf(name: str, value: Any, f) -> None:
         return
     if expected == 'list':
         if not isinstance(value, (list, tuple)) or not all(
-                isinstance(v, (int, float)) and math.isfinite(v) for v in value):
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in value):
             raise ConfigError(f'{name} must be a list of finite numbers, got {value!r}')
         if name.endswith('regions') and len(value) % 3:
             raise ConfigError(f'{name} holds x, y, std triples; got {len(value)} numbers')

@@ -28,6 +28,7 @@ from extended_tracker.errors import ConfigError
     ({'model.rho': True}, 'model.rho must be a number, got True'),
     ({'birth.regions': [1.0, 'a', 2.0]}, 'birth.regions must be a list of finite numbers'),
     ({'birth.regions': 3.0}, 'birth.regions must be a list of finite numbers'),
+    ({'birth.regions': [1.0, True, 2.0]}, 'birth.regions must be a list of finite numbers'),
     ({'birth.regions': [1.0, 2.0, float('inf')]}, 'birth.regions must be a list of finite'),
 ])
 def test_bad_values_are_refused_with_the_reason(flat, message):
