@@ -313,8 +313,9 @@ def validate(cfg: TrackerConfig) -> None:
 
 def leaf_kind(f) -> str:
     """A leaf field's type as a name: 'bool', 'int', 'float', 'str' or 'list' (the
-    annotations are strings under ``from __future__ import annotations``)."""
-    return f.type if isinstance(f.type, str) else f.type.__name__
+    annotation itself: this module's annotations are strings, under ``from __future__
+    import annotations``)."""
+    return f.type
 
 
 def iter_leaves(cfg, prefix=''):
@@ -363,7 +364,8 @@ def from_dict(data: dict | None) -> TrackerConfig:
             raise ConfigError(f'unknown keys in {f.name}: {sorted(unknown)}')
         coerced = {}
         for key, val in sub.items():
-            if known[key].type == 'float' and isinstance(val, int) and not isinstance(val, bool):
+            kind = leaf_kind(known[key])
+            if kind == 'float' and isinstance(val, int) and not isinstance(val, bool):
                 val = float(val)
             coerced[key] = val
         sections[f.name] = replace(getattr(base, f.name), **coerced)
