@@ -4,7 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from extended_tracker.config import from_dict, from_flat, iter_leaves, to_flat, TrackerConfig
+from extended_tracker.config import (from_dict, from_flat, iter_leaves, leaf_kind, to_flat,
+                                     TrackerConfig)
 from extended_tracker.configio import load_yaml
 from extended_tracker.errors import ConfigError
 
@@ -62,8 +63,10 @@ def test_round_trips_and_documentation():
     rho = from_dict({'model': {'rho': 1}}).model.rho
     assert rho == 1.0 and type(rho) is float
     assert type(from_flat({'model.n_max': 7}).model.n_max) is int
-    for name, f, _ in iter_leaves(cfg):
+    for name, f, value in iter_leaves(cfg):
         assert f.metadata['description'], name
+        # the kind every check and the node's parameter types are read from
+        assert leaf_kind(f) == type(value).__name__, name
 
 
 def _with(flat: dict, name: str, value) -> dict:
