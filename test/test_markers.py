@@ -152,3 +152,30 @@ def test_the_rectangle_thresholds(a, b, want):
     """Rectangles from ``rectangle_length`` (1.2 m) of second-moment length, or from half
     of it with semi-axes at least ``rectangle_elongation`` (2.5) to one."""
     assert shapes(estimates([(1, 0.0, 0.0, a, b, 0.3)]), TrackerConfig().extraction) == [want]
+
+
+def test_a_zero_width_extent_is_drawn_without_dividing_by_zero():
+    """A singular extent (a straight contour, semi-minor 0): a rectangle if long enough,
+    an ellipse if not, the elongation taken without a division by zero."""
+    cfg = TrackerConfig().extraction
+    with np.errstate(all='raise'):
+        assert shapes(estimates([(1, 0.0, 0.0, 1.0, 0.0, 0.3)]), cfg).tolist() == [
+            SHAPE_RECTANGLE]
+        assert shapes(estimates([(1, 0.0, 0.0, 0.0, 0.0, 0.0)]), cfg).tolist() == [
+            SHAPE_ELLIPSE]
+
+
+def test_markers_stay_where_the_scan_saw_the_objects():
+    """Markers are not frame-locked: RViz places them with the transform at the scan's
+    stamp, so on a moving robot an object's outline stays where it was seen instead of
+    riding along with the sensor frame. The colours are bright on RViz's dark background
+    (brightest channel 0.95) and saturated enough to tell ids apart (lowest channel at
+    most a quarter of the brightest)."""
+    est = estimates([(4, 2.0, 1.0, 0.3, 0.2, 0.0)])
+    res = StepResult(1_700_000_000_000_000_000, 'laser', est, np.ones(2), 1.0,
+                     np.zeros((0, 2)), np.zeros((0, 2)), {})
+    data, _ = markers_data(res, TrackerConfig(), previous_ids={9})
+    assert len(data['markers']) == 6 and not any(m['frame_locked'] for m in data['markers'])
+    for lab in range(1, 101):
+        rgb = [id_rgba(lab)[k] for k in 'rgb']
+        assert max(rgb) == pytest.approx(0.95) and min(rgb) <= 0.25 * max(rgb) + 1e-12
