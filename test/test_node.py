@@ -850,6 +850,29 @@ def test_invalid_value_at_start_up_is_refused_and_leaves_no_context(monkeypatch)
     assert not made[1].ok()
 
 
+def test_the_harness_keeps_dds_on_the_machine_and_bounds_every_wait(monkeypatch):
+    """A robot's test that uses the harness without this package's conftest still stays
+    on loopback (the harness sets the discovery range when it is unset), and a node that
+    never answers fails the send after ``spin_limit`` with a clear message instead of
+    hanging."""
+    import os
+
+    monkeypatch.delenv('ROS_AUTOMATIC_DISCOVERY_RANGE')
+    with NodeHarness(NO_BACKGROUND, markers=False, spin_limit=0.5) as h:
+        assert os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
+        scan = ros_scan(simulate(tutorial_scene(), 0.1, seed=1)[0][0])
+        assert h.send(scan) is not None
+        monkeypatch.setattr(h.node.pub_tracks, 'publish', lambda msg: None)
+        with pytest.raises(AssertionError, match=r'no reply from the node within 0.5 s'):
+            h.send(scan)
+        # a wait of its own length: a condition never met returns false after it, not
+        # after the harness's spin_limit
+        h.spin_limit = 60.0
+        t0 = time.monotonic()
+        assert h.spin_until(lambda: False, limit=0.2) is False
+        assert time.monotonic() - t0 < 30.0
+
+
 def test_every_event_is_explained_in_the_readme():
     """The README's list of events names each one the pipeline and the node can raise,
     and no other."""
