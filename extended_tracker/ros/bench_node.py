@@ -67,7 +67,18 @@ def node_overhead(scans: int = 200, marker_listener: bool = False) -> dict:
             listener.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
-    total, inner = np.array(total[20:]) * 1e3, np.array(inner[20:]) * 1e3
+    return overhead_figures(total, inner)
+
+
+def overhead_figures(total, inner, warm: int = 20) -> dict:
+    """
+    The figures of :func:`node_overhead`, in ms, from the seconds of each callback
+    (``total``) and of the ``step`` inside it (``inner``), after the first ``warm``: the
+    medians of both, the median of each callback's own overhead (not the difference of
+    the medians) and the callback's p99.
+    """
+    total = np.asarray(total[warm:], dtype=float) * 1e3
+    inner = np.asarray(inner[warm:], dtype=float) * 1e3
     return {'callback_median_ms': float(np.median(total)),
             'step_median_ms': float(np.median(inner)),
             'overhead_median_ms': float(np.median(total - inner)),
