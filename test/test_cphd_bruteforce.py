@@ -470,3 +470,68 @@ def test_esf_terms_keep_the_log_domain_for_extreme_spreads():
     small = cphd.esf_terms(log_a[1:], log_b[1:])          # 1 x 3^2 elements
     ref_small = _log_domain_terms(log_a[1:], log_b[1:])
     assert np.array_equal(small[0], ref_small[0]) and np.array_equal(small[1], ref_small[1])
+
+
+def test_the_poisson_pmf_of_mean_zero_is_all_at_none():
+    """Mean 0: the pmf is 1 at n = 0 and 0 elsewhere (log: 0 and -inf), as scipy says of
+    every positive mean in the limit."""
+    from scipy.stats import poisson
+
+    np.testing.assert_array_equal(poisson_log_pmf(0.0, 3), [0.0, -np.inf, -np.inf, -np.inf])
+    np.testing.assert_allclose(poisson_log_pmf(2.5, 6), poisson.logpmf(np.arange(7), 2.5),
+                               rtol=1e-14)
+
+
+def test_the_log_factorial_table_grows_to_any_length(monkeypatch):
+    """The cached table of log n! grows on demand to hold the entry asked for, however
+    far past twice its length that is; its values are scipy's gammaln(n + 1)."""
+    from extended_tracker import cphd
+
+    monkeypatch.setattr(cphd, '_LF', gammaln(np.arange(4) + 1.0))
+    for k in (10, 11, 100):
+        got = cphd._log_factorial(k)
+        assert len(got) == k + 1
+        np.testing.assert_allclose(got, gammaln(np.arange(k + 1) + 1.0), rtol=1e-15)
+
+
+def test_esf_terms_of_a_thousand_equal_values_are_log_binomials():
+    """1100 values of 1: e_r is C(1100, r), up to 1e329, past the largest double, so the
+    scaled linear path must not be taken for such a row (LINEAR_MAX_R); the log-domain
+    path gives log C(1100, r) to rounding. The oracle: gammaln."""
+    from extended_tracker.cphd import esf_terms
+
+    k = 1100
+    log_e, _ = esf_terms(np.zeros((1, k)), None, min_work=0)
+    r = np.arange(k + 1)
+    want = gammaln(k + 1.0) - gammaln(r + 1.0) - gammaln(k - r + 1.0)
+    np.testing.assert_allclose(log_e[0], want, rtol=1e-11, atol=1e-9)
+
+
+def test_esf_terms_give_an_empty_sum_for_a_row_without_coefficients():
+    """A row whose coefficients are all -inf (a partition with no active singleton in a
+    batch with some) has leave-one-out sums of nothing: -inf, not NaN, on the scaled
+    path as on the log-domain one."""
+    from extended_tracker.cphd import esf_terms
+
+    rng = np.random.default_rng(3)
+    p, k = 10, 24
+    log_a = rng.normal(0.0, 1.0, (p, k))
+    log_b = rng.normal(0.0, 1.0, (p, k))
+    log_b[4] = -np.inf
+    for min_work in (0, 10 ** 9):                       # scaled, then the log domain
+        with np.errstate(all='raise'):
+            _, loo = esf_terms(log_a, log_b, min_work=min_work)
+        assert np.all(loo[4] == -np.inf) and np.all(np.isfinite(np.delete(loo, 4, axis=0)))
+
+
+def test_with_no_predicted_objects_the_cardinality_is_the_prediction():
+    """No component to detect: whatever the predicted pmf holds stays unseen (every
+    object missed for sure), the returns are clutter, and the posterior cardinality is
+    the predicted one. Oracle: Bayes with a likelihood that does not depend on n."""
+    rng = np.random.default_rng(5)
+    log_card = np.log(rng.dirichlet(np.ones(6)))
+    clutter = poisson_log_pmf(2.0, 10)
+    out = cphd_update(np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.full(3, -np.log(50.0)),
+                      np.ones(3, dtype=np.int64), [np.arange(3)], log_card, clutter)
+    np.testing.assert_allclose(out.log_card, log_card, rtol=1e-12, atol=1e-12)
+    assert out.possible and out.log_w_detected.shape == (0, 3)

@@ -608,7 +608,7 @@ def test_a_label_wholly_out_of_sight_is_kept_out_of_the_cphd_update(w_far):
         assert plain.mixture.w[plain.mixture.m[:, 1] < -4.0].sum() < 0.6 * w
 
 
-@pytest.mark.parametrize('added', [0.4, 1.0, 1.3, 2.75])
+@pytest.mark.parametrize('added', [0.0005, 0.4, 1.0, 1.3, 2.75])
 def test_putting_objects_into_the_cardinality_matches_enumeration(added):
     """
     ``add_cardinality``: each of the whole objects and the fractional rest is there with
