@@ -185,6 +185,10 @@ def test_batched_update_equals_reference_loop():
         np.testing.assert_allclose(out.P[k], P2, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(out.V[k], V2, rtol=1e-9, atol=1e-12)
         assert (out.v[k], out.alpha[k], out.beta[k]) == pytest.approx((v2, a2, b2))
+    # exactly symmetric, as the reference's rounding need not be: a covariance whose two
+    # off-diagonals differ by a bit drifts apart over a track's life
+    assert np.array_equal(out.P, out.P.swapaxes(1, 2))
+    assert np.array_equal(out.V, out.V.swapaxes(1, 2))
 
 
 def poisson_gamma_moments(alpha, beta, f, n):
@@ -384,6 +388,43 @@ def test_prediction_keeps_means_and_forgets_per_second():
     np.testing.assert_allclose(a.expected_extent(), mix.expected_extent(), rtol=1e-12)
     assert np.all(a.v > 6) and np.all(a.v < mix.v)
     np.testing.assert_allclose(a.m[:, :2], mix.m[:, :2] + 0.1 * mix.m[:, 2:])
+
+
+def test_a_step_back_in_time_is_refused():
+    """A negative step is a caller's bug (the pipeline resets on stamps that go back):
+    predict says so rather than running the motion model backwards; zero is a step."""
+    mix = random_mixture(np.random.default_rng(6), 2)
+    with pytest.raises(ValueError, match='dt must be >= 0, got -0.05'):
+        predict(mix, -0.05, 0.99, 2.0, 1.5, 2.5)
+    same = predict(mix, 0.0, 0.99, 2.0, 1.5, 2.5)
+    np.testing.assert_array_equal(same.m, mix.m)
+    np.testing.assert_array_equal(same.w, mix.w)
+
+
+def test_the_gate_is_a_strict_chi_square_bound_on_its_covariance():
+    """gate_pairs keeps a cell whose centroid lies at d^2 just under the threshold and
+    drops one just over it, d^2 measured under H P H^T + (1 + rho) X + R built here from
+    the component's parameters and inverted by numpy."""
+    from extended_tracker.ggiw import gate_pairs
+
+    X0 = np.array([[0.09, 0.02], [0.02, 0.05]])
+    mix = one_component(30, X0)
+    G = mix.P[0, :2, :2] + (1.0 + RHO) * mix.V[0] / (mix.v[0] - IW_OFFSET) + R
+    lam, U = np.linalg.eigh(G)
+    threshold = 13.8
+    pts = []
+    for d2 in (0.995 * threshold, 1.005 * threshold):
+        for angle in (0.0, 1.0, 2.5):
+            u = np.array([np.cos(angle), np.sin(angle)])
+            e = U @ (np.sqrt(lam) * u)                   # e' G^-1 e = 1
+            pts.append(mix.m[0, :2] + np.sqrt(d2) * e)
+    pts = np.array(pts)
+    e = pts - mix.m[0, :2]
+    np.testing.assert_allclose(np.einsum('ki,ij,kj->k', e, np.linalg.inv(G), e),
+                               [0.995 * threshold] * 3 + [1.005 * threshold] * 3, rtol=1e-12)
+    st = cell_stats(pts, [np.array([j]) for j in range(len(pts))])
+    comp, cell = gate_pairs(mix, st, RHO, R, threshold)
+    assert cell.tolist() == [0, 1, 2] and comp.tolist() == [0, 0, 0]
 
 
 @pytest.mark.parametrize('tau', [1e-3, 1e-6])
