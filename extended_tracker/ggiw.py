@@ -215,7 +215,7 @@ def eig2(A):
     """
     a, b, c = A[..., 0, 0], A[..., 0, 1], A[..., 1, 1]
     half_tr = 0.5 * (a + c)
-    root = np.sqrt(np.maximum(0.25 * (a - c) ** 2 + b * b, 0.0))
+    root = np.sqrt(0.25 * (a - c) ** 2 + b * b)          # a sum of squares: >= 0
     return half_tr + root, half_tr - root
 
 
