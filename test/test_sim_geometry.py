@@ -254,3 +254,26 @@ def test_the_point_simulator_draws_from_the_measurement_model():
     assert (pts >= box[0]).all() and (pts <= box[1]).all()
     assert np.abs(pts.mean(axis=0) - [1.0, 1.0]).max() < 0.08
     assert np.abs(pts.var(axis=0) - [16 / 12, 36 / 12]).max() < 0.12
+
+
+def test_clutter_returns_fall_on_distinct_beams():
+    """A Poisson number of clutter returns, each on a beam of its own: with 300 a scan on
+    361 beams and nothing else in view, a scan holds as many returns as were drawn (up to
+    the beams there are), where beams drawn with replacement would hold some 200."""
+    spec = LaserSpec(noise_std=0.0, dropout=0.0, clutter_per_scan=300.0)
+    counts = [np.isfinite(scan.ranges).sum() for scan, _ in simulate(Scene((), laser=spec),
+                                                                      10.0, seed=2)]
+    assert abs(np.mean(counts) - 300.0) < 4 * math.sqrt(300.0 / len(counts))
+
+
+def test_a_scanner_inside_a_shape_sees_its_far_side():
+    """The scanner inside an ellipse (a person leaning on it): every beam returns where it
+    leaves the shape, 1 m away on a circle of radius 1 about the scanner."""
+    ob = SimObject((0.0, 0.0), a=1.0, b=1.0)
+    scan, _ = first_scan(Scene((ob,), laser=CLEAN))
+    np.testing.assert_allclose(scan.ranges, 1.0, rtol=1e-6)
+
+
+def test_an_object_is_alive_from_its_start_to_its_end_inclusive():
+    ob = SimObject((3.0, 0.0), t_start=1.0, t_end=2.0)
+    assert [ob.alive(t) for t in (0.999, 1.0, 2.0, 2.001)] == [False, True, True, False]
