@@ -243,8 +243,7 @@ def simulated_scans(scene: Scene, duration: float, seed: int,
         counts = np.bincount(owner[(owner >= 0) & (r <= L.range_max)],
                              minlength=len(scene.objects))
         truth = [TruthObject(i, c, v, X, kind, int(counts[i])) for i, c, v, X, kind in truth]
-        ranges = r + rng.normal(0.0, L.noise_std, L.n_beams)
-        ranges = np.where(np.isfinite(r), ranges, np.inf)
+        ranges = r + rng.normal(0.0, L.noise_std, L.n_beams)    # no hit: inf + noise = inf
         drop = rng.random(L.n_beams) < L.dropout
         ranges = np.where(drop, np.inf, ranges)
         n_clutter = rng.poisson(L.clutter_per_scan) if L.clutter_per_scan > 0 else 0
