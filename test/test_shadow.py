@@ -80,6 +80,36 @@ def test_the_interval_is_widened_by_the_position_std_up_to_max_widen(sigma, k, w
     assert half_widened[0] == pytest.approx(np.arcsin((0.25 + widen) / 5.0), rel=1e-12)
 
 
+def test_the_near_and_far_ranges_come_from_the_extent_along_the_line_of_sight():
+    """An object 5 m ahead, 2 m long along the line of sight and 0.4 m wide: its near
+    and far ranges are 5 -+ 1 m (its semi-axis along the sight line) and its half-angle
+    asin(0.2 / 5) (its semi-axis across); turned a quarter, 5 -+ 0.2 m and asin(1 / 5).
+    An outline about the sensor has its near range at the sensor, not behind it."""
+    from extended_tracker.sensing.shadow import _geometry
+
+    m = np.array([[5.0, 0.0, 0.0, 0.0], [0.0, 5.0, 0.0, 0.0], [0.3, 0.0, 0.0, 0.0]])
+    X = np.array([np.diag([1.0, 0.04]), np.diag([1.0, 0.04]), np.eye(2)])
+    P = np.tile(np.eye(4) * 1e-6, (3, 1, 1))
+    bearing, half, _, r_near, r_far, r, _ = _geometry(m, X, P, 0.0, 0.0)
+    np.testing.assert_allclose(r_near, [4.0, 4.8, 0.0], atol=1e-12)
+    np.testing.assert_allclose(r_far[:2], [6.0, 5.2], atol=1e-12)
+    np.testing.assert_allclose(half[:2], np.arcsin([0.2 / 5.0, 1.0 / 5.0]), rtol=1e-12)
+    np.testing.assert_allclose(bearing[:2], [0.0, np.pi / 2], atol=1e-15)
+
+
+def test_an_object_thin_across_the_line_of_sight_has_no_offset():
+    """Seen end on, an object has no width to shift along: whatever the shift of its seen
+    beams, its centroid offset is 0 (extents of zero and of 0.1 um width across the sight
+    line)."""
+    from extended_tracker.sensing.shadow import _centroid_offset
+
+    X = np.array([np.diag([0.5, 0.0]), np.diag([0.5, 1e-14]), np.diag([0.04, 0.04])])
+    u = np.tile([0.0, 1.0], (3, 1))                      # across a sight line along x
+    offset = _centroid_offset(X, u, np.array([0.1, 0.1, 0.1]))
+    np.testing.assert_array_equal(offset[:2], np.zeros((2, 2)))
+    np.testing.assert_allclose(offset[2], [0.0, 0.1], atol=1e-15)   # a round one: u shift
+
+
 def test_the_rate_scale_is_the_visible_fraction_down_to_a_twentieth():
     """A partly hidden object expects that part of its returns: rate_scale equals the
     visible fraction wherever a twentieth or more is seen (0.05 below that)."""
