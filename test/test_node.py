@@ -349,6 +349,59 @@ def test_a_node_that_cannot_keep_up_says_so(harness, monkeypatch):
     assert harness.node.counts == {'falling_behind': 2}
 
 
+def test_only_slow_scans_in_a_row_are_falling_behind(harness):
+    """The count of slow scans starts again at a scan that kept up, and at a stamp that
+    goes back (no period to compare with): nine slow, one in time, nine slow is no event,
+    nor are nine slow, a stamp 0.1 s back taking 0.5 s, and nine slow; a tenth in a row is."""
+    node = harness.node
+    t, period = 10**18, 100_000_000                         # ns: 10 Hz
+
+    def scans(n, took):
+        nonlocal t
+        for _ in range(n):
+            t += period
+            node._check_pace(t, took)
+
+    scans(9, 0.12)
+    scans(1, 0.05)
+    scans(9, 0.12)
+    t -= 2 * period                                         # a stamp 0.1 s before the last
+    scans(1, 0.5)
+    scans(9, 0.12)
+    assert node.counts == {}
+    scans(1, 0.12)
+    assert node.counts == {'falling_behind': 1}
+
+
+def test_a_parameter_of_the_wrong_type_is_named_once_in_its_error():
+    """The start-up error for a whole number given to a double: the name, the fix, and
+    rclpy's reason without the name it appends again."""
+    with pytest.raises(ConfigError) as err:
+        NodeHarness({'model.p_survival': 1})
+    text = str(err.value)
+    assert text.startswith('model.p_survival must be a double (a whole number needs its '
+                           'decimal point: 2.0, not 2); ')
+    assert text.endswith("expecting type 'DOUBLE'")
+
+
+def test_a_list_parameter_set_through_the_parameter_service(harness):
+    """`ros2 param set` on birth.regions: the service hands the node an array of doubles,
+    which the node takes as the list its configuration holds."""
+    from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    client = harness.probe.create_client(SetParameters, '/extended_tracker/set_parameters')
+    assert harness.spin_until(client.service_is_ready)
+    request = SetParameters.Request(parameters=[ParameterMsg(
+        name='birth.regions', value=ParameterValue(
+            type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=[1.0, 2.0, 0.5]))])
+    future = client.call_async(request)
+    assert harness.spin_until(future.done)
+    assert [r.successful for r in future.result().results] == [True]
+    assert harness.node.cfg.birth.regions == [1.0, 2.0, 0.5]
+    assert type(harness.node.cfg.birth.regions) is list
+
+
 def test_a_zero_stamp_is_answered_at_the_arrival_time(harness):
     """A driver that leaves header.stamp zero: each scan is taken (and answered) at the
     node's clock when it arrived, counted as zero_stamp; none is dropped as a repeat."""
