@@ -817,10 +817,23 @@ def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
 def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     """Every figure of the summary against the step results of the replay, recomputed
     here: the times set to 1, 2, ... ms scan by scan (median and p99 known), and two
-    events of one kind whose reasons differ (the first is kept)."""
+    events of one kind whose reasons differ (the first is kept). Two ids are added to
+    some scans' estimates: one that strays 0.7 m and comes back (not moving), one that
+    goes 1.5 m and comes back (moving: the farthest it got counts, not where it ended);
+    with them the most objects of a scan are not the last scan's."""
     import extended_tracker.replay as rp
+    from extended_tracker.state import Estimates
 
     real, seen = rp.step, []
+    added = {901: {20: 0.0, 21: 0.7, 22: 0.0}, 902: {20: 0.0, 21: 1.5, 22: 0.0}}
+
+    def with_object(e, label, x):
+        one = Estimates(np.array([label]), np.ones(1), np.array([[x, -5.0, 0.0, 0.0]]),
+                        np.eye(4)[None] * 0.01, np.eye(2)[None] * 0.04, np.ones(1),
+                        np.ones(1, dtype=np.int64), np.ones(1))
+        return Estimates(*(np.concatenate([getattr(e, f), getattr(one, f)])
+                           for f in ('label', 'existence', 'm', 'P', 'X', 'rate',
+                                     'num_detections', 'visibility')))
 
     def step(*args, **kwargs):
         state, res = real(*args, **kwargs)
@@ -828,6 +841,9 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
         res.processing_time = len(seen) * 1e-3
         if len(seen) in (5, 9):
             res.event, res.error = 'time_gap', f'reason {len(seen)}'
+        for label, path in added.items():
+            if len(seen) in path:
+                res.estimates = with_object(res.estimates, label, path[len(seen)])
         return state, res
 
     monkeypatch.setattr(rp, 'step', step)
@@ -844,8 +860,11 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     assert s.valid_detections == sum(r.diagnostics['detections'] for r in seen)
     assert s.distinct_ids == len(travel) >= 3
     assert s.moving_ids == sum(v > 1.0 for v in travel.values()) >= 1
+    assert travel[901] == pytest.approx(0.7) and travel[902] == pytest.approx(1.5)
     assert s.mean_count == pytest.approx(sum(counts) / n)
-    assert s.max_count == max(counts) > min(counts)
+    assert s.max_count == max(counts) > counts[-1]
+    assert (f'valid detections {s.valid_detections} '
+            f'({s.valid_detections / n:.1f} per scan)') in s.lines()
     assert s.median_ms == pytest.approx((n + 1) / 2)
     assert s.p99_ms == pytest.approx(1 + 0.99 * (n - 1))
     assert s.events == {'time_gap': 2} and s.first_reasons == {'time_gap': 'reason 5'}
