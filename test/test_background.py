@@ -405,6 +405,10 @@ def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dr
     assert absorbed and shown[-1] < absorbed[0] < 65    # not reported once learned
     assert all(len(res.estimates) == 0 for _, res in hist[65:]), \
         [len(res.estimates) for _, res in hist[40:]]
+    # a dropped track's weight (about one object) leaves the expected count with it
+    for k in absorbed:
+        gone = hist[k][1].diagnostics['absorbed']
+        assert hist[k][1].expected_count < hist[k - 1][1].expected_count - 0.8 * gone, k
 
 
 def test_static_object_in_front_of_the_wall_is_learned_after_forget_time_though_tracked():

@@ -122,6 +122,30 @@ def test_gap_reinitialises_and_dt_is_never_negative():
                          'tracks restarted')
 
 
+def test_a_gap_restarts_the_tracks_only_past_max_gap():
+    """timing.max_gap 2 s: a scan 1.9 s after the last is tracked on (predicted 1.9 s),
+    one 2.1 s after it restarts the tracks."""
+    state = warm_state()
+    nxt = scans(21)[-1]
+    for gap, event in ((1.9, None), (2.1, 'time_gap')):
+        new_state, res = step(state, with_stamp(nxt, state.last_stamp_ns + int(gap * 1e9)),
+                              CFG)
+        assert res.event == event, gap
+        assert new_state.filter.dt == pytest.approx(gap if event is None else 0.1)
+
+
+def test_the_expected_count_is_the_mean_of_the_cardinality():
+    """expected_count, the ExtendedObjectArray's field, is sum n p(n) of the posterior
+    cardinality it comes with, not its likeliest count."""
+    means = []
+    for res in step_results(CFG, 30):
+        card = res.cardinality
+        assert res.expected_count == pytest.approx(float(np.arange(len(card)) @ card),
+                                                   rel=1e-12)
+        means.append(res.expected_count)
+    assert any(abs(m - round(m)) > 1e-3 for m in means)     # not a whole count
+
+
 def test_max_gap_below_the_scan_period_says_so_on_every_scan():
     """timing.max_gap under the scan period (0.1 s here) restarts the filter on every
     scan: nothing is ever tracked, and each scan's reason names both figures."""

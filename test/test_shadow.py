@@ -799,6 +799,21 @@ def test_a_track_the_sensor_would_stand_in_is_dropped_with_its_weight(mode):
     assert with_it.diagnostics['left_view'] == 0
 
 
+def test_a_track_both_at_the_sensor_and_sparse_is_counted_once():
+    """A component about the sensor and straight ahead: its outline holds the sensor,
+    and its half turn of beams, all in view, far outnumber its 10 expected returns, so
+    it is both at_sensor and sparse. It is dropped once, with its weight, and counted as
+    at_sensor alone: the diagnostics' counts add up to the components dropped."""
+    from extended_tracker.sensing.scan import scan_to_points
+
+    extra = component_at(0.1, 0.0)
+    vis = detection_model(extra, scan_to_points(walker_scan()),
+                          from_dict({'background': {'enabled': False}}))
+    assert vis.at_sensor[0] and vis.sparse[0] and not vis.outside[0]
+    with_it, _ = assert_dropped_with_its_weight(extra, 'cphd')
+    assert (with_it.diagnostics['at_sensor'], with_it.diagnostics['sparse']) == (1, 0)
+
+
 def walker_scan():
     """One scan, without dropouts, of a walker 5 m ahead."""
     (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
