@@ -715,6 +715,19 @@ def test_cli_replay_with_a_preset(tmp_path, capsys):
     assert not (tmp_path / 'o2').exists()
 
 
+def test_cli_refuses_an_option_it_does_not_have(tmp_path, capsys):
+    """An option no command has (a typo of --quiet) is refused with argparse's usage error
+    before anything runs; only bench passes unknown options on, to its own parser."""
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'in', seconds=0.5)
+    with pytest.raises(SystemExit) as stop:
+        main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out'), '--quite'])
+    assert stop.value.code == 2
+    assert 'unrecognized arguments: --quite' in capsys.readouterr().err
+    assert not (tmp_path / 'out').exists()
+
+
 def test_real_replays_every_folder_with_a_line_each(tmp_path, capsys):
     """`extended-tracker real` on a folder of recordings: one line of figures per bag, its
     PNG and output bag, and a bag's events under its line with the first reason."""
