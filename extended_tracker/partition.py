@@ -444,24 +444,16 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     return labels
 
 
-def expected_object_count(n_points: int, rate: float, k_max: int) -> int:
+def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -> np.ndarray:
     """
-    Most likely number of objects ``k`` behind ``n_points`` detections, each at ``rate``.
+    Most likely number of objects ``k`` behind each cell's ``n_points`` detections, each
+    object at ``rate`` detections per scan.
 
     Notes
     -----
-    ``argmax_k Poisson(n; k rate)`` over ``k = 1..k_max`` (Granström et al. 2012, IV-C).
+    ``argmax_k Poisson(n; k rate)`` over ``k = 1..k_max`` (Granström et al. 2012, IV-C),
+    for every cell at once.
     """
-    if rate <= 0:
-        return 1
-    k = np.arange(1, k_max + 1)
-    mean = k * rate
-    log_p = n_points * np.log(mean) - mean
-    return int(k[np.argmax(log_p)])
-
-
-def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -> np.ndarray:
-    """Vectorised :func:`expected_object_count` over cells."""
     k = np.arange(1, k_max + 1)[None, :]
     mean = k * np.maximum(rate, 1e-9)[:, None]
     log_p = n_points[:, None] * np.log(mean) - mean
