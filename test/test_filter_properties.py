@@ -262,6 +262,19 @@ def test_kmeans_ends_at_a_lloyd_fixed_point():
     assert sorted(np.bincount(labels).tolist()) == [5, 5]
 
 
+def test_kmeans_of_identical_points_and_a_centre_that_takes_none():
+    """Points that all coincide: no second centre can be drawn (every distance is 0), and
+    k-means returns one cluster. A given centre that no point is nearest stays where it
+    is (it is not moved to the origin, where it would take the points near the sensor)."""
+    from extended_tracker.partition import kmeans_pp
+
+    same = np.tile([[2.0, 1.0]], (5, 1))
+    assert kmeans_pp(same, 2, seed=0).tolist() == [0] * 5
+    pts = np.array([[0.1, 0.0], [0.15, 0.05], [1.0, 0.0], [1.05, 0.05]])
+    labels = kmeans_pp(pts, 2, init=np.array([[0.6, 0.0], [50.0, 50.0]]))
+    assert labels.tolist() == [0, 0, 0, 0]
+
+
 def test_prediction_partition_takes_only_the_returns_inside_a_gate():
     """Returns inside a confident prediction's gate go to it; one outside every gate keeps
     its distance-partition cell, however near the gate's edge."""
@@ -269,10 +282,11 @@ def test_prediction_partition_takes_only_the_returns_inside_a_gate():
 
     predicted = {'centre': np.array([[0.0, 0.0], [2.0, 0.0]]),
                  'gate_inv': np.array([np.eye(2) / 0.01] * 2), 'gate': 9.0}   # 0.3 m
-    pts = np.array([[0.2, 0.0], [0.0, 0.29], [0.45, 0.0], [1.85, 0.1], [2.0, 0.5]])
-    fallback = np.array([0, 0, 2, 3, 3])
+    pts = np.array([[0.2, 0.0], [0.0, 0.29], [0.45, 0.0], [1.85, 0.1], [2.0, 0.5],
+                    [0.0, -0.31]])
+    fallback = np.array([0, 0, 2, 3, 3, 5])
     labels = prediction_partition(pts, predicted, fallback)
-    assert labels.tolist() == [0, 0, 2 + 2, 1, 2 + 3]
+    assert labels.tolist() == [0, 0, 2 + 2, 1, 2 + 3, 2 + 5]
 
 
 
