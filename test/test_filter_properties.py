@@ -703,8 +703,8 @@ def test_batched_merge_equals_per_group_reference(groups_of):
         a, b = merge_gamma(mix.w[idx], mix.alpha[idx], mix.beta[idx])
         v, V = merge_iw(mix.w[idx], mix.v[idx], mix.V[idx])
         # both solve the same scalar equations by Newton to ~1e-10 relative
-        assert np.isclose(out.alpha[k], a, rtol=1e-7) and np.isclose(out.beta[k], b, rtol=1e-7)
-        assert np.isclose(out.v[k], v, rtol=1e-7)
+        assert np.isclose(out.alpha[k], a, rtol=1e-9) and np.isclose(out.beta[k], b, rtol=1e-9)
+        assert np.isclose(out.v[k], v, rtol=1e-9)
         np.testing.assert_allclose(out.V[k], V, rtol=1e-7, atol=1e-12)
         assert np.isclose(out.w[k], mix.w[idx].sum(), rtol=1e-12)
 
