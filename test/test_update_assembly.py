@@ -109,6 +109,24 @@ def test_update_state_builds_the_updates_inputs_as_defined(mode, dt):
     assert expected[0] > 0.5 and det[3][~claimed].sum() > 0.1 and claimed[:2].all()
 
 
+def test_the_birth_miss_factor_uses_the_birth_gamma_of_mean_expected_rate():
+    """The birth intensity's log q_D is 1 - p_D0 (1 - E[e^-gamma]) under the birth prior's
+    Gamma: shape birth.rate_shape, mean birth.expected_rate (rate beta = shape / mean),
+    for which E[e^-gamma] = (beta / (beta + 1))^shape. With the default shape of 1 a rate
+    of 1 / mean gave the same; at shape 2.5 it does not. Oracle: the same expectation by
+    quadrature over scipy's Gamma."""
+    from scipy import integrate, stats
+
+    from extended_tracker.tracker import _birth_log_miss_factor
+
+    cfg = from_dict({'birth': {'rate_shape': 2.5, 'expected_rate': 8.0},
+                     'detection': {'p_d0': 0.9}})
+    gamma = stats.gamma(2.5, scale=8.0 / 2.5)
+    e0 = integrate.quad(lambda g: np.exp(-g) * gamma.pdf(g), 0, np.inf, epsabs=1e-14)[0]
+    assert _birth_log_miss_factor(cfg) == pytest.approx(np.log(1 - 0.9 * (1 - e0)),
+                                                        rel=1e-10)
+
+
 def test_a_birth_row_is_the_birth_prior_at_the_cell_with_the_uniform_density():
     """One row per cell, written out from the definition (``_birth_prior``'s notes): at
     the cell's mean, at rest, position variance ``A / (2 pi)`` (a Gaussian whose density at
