@@ -834,19 +834,19 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     some scans' estimates: one that strays 0.7 m and comes back (not moving), one that
     goes 1.5 m and comes back (moving: the farthest it got counts, not where it ended);
     with them the most objects of a scan are not the last scan's."""
+    from dataclasses import fields
+
     import extended_tracker.replay as rp
     from extended_tracker.state import Estimates
+    from mixtures import estimates
 
     real, seen = rp.step, []
     added = {901: {20: 0.0, 21: 0.7, 22: 0.0}, 902: {20: 0.0, 21: 1.5, 22: 0.0}}
 
     def with_object(e, label, x):
-        one = Estimates(np.array([label]), np.ones(1), np.array([[x, -5.0, 0.0, 0.0]]),
-                        np.eye(4)[None] * 0.01, np.eye(2)[None] * 0.04, np.ones(1),
-                        np.ones(1, dtype=np.int64), np.ones(1))
-        return Estimates(*(np.concatenate([getattr(e, f), getattr(one, f)])
-                           for f in ('label', 'existence', 'm', 'P', 'X', 'rate',
-                                     'num_detections', 'visibility')))
+        one = estimates([label], [[x, -5.0]])
+        return Estimates(*(np.concatenate([getattr(e, f.name), getattr(one, f.name)])
+                           for f in fields(Estimates)))
 
     def step(*args, **kwargs):
         state, res = real(*args, **kwargs)
