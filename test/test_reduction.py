@@ -6,6 +6,7 @@ import pytest
 from scipy import stats
 
 from extended_tracker.ggiw import IW_OFFSET, Mixture
+from extended_tracker.memo import evolve
 from extended_tracker.reduction import merge_groups, reduce_mixture
 
 from mixtures import pedestrians
@@ -178,8 +179,7 @@ def test_gamma_merge_solves_its_equation_to_rounding():
     for _ in range(200):
         k = int(rng.integers(2, 5))
         w, al, be = rng.uniform(0.1, 1, k), rng.uniform(0.5, 60, k), rng.uniform(0.2, 8, k)
-        mix = mixture(w, [20.0] * k, [extent(0.3, 0.2, 0.0)] * k)
-        mix = Mixture(mix.w, al, be, mix.m, mix.P, mix.v, mix.V, mix.label)
+        mix = evolve(mixture(w, [20.0] * k, [extent(0.3, 0.2, 0.0)] * k), alpha=al, beta=be)
         out = merge_groups(mix, [np.arange(k)])
         wn = w / w.sum()
         mean = np.sum(wn * al / be)
@@ -200,9 +200,8 @@ def test_gamma_merge_of_equal_members_keeps_their_shape_down_to_vanishing_shapes
     """
     from extended_tracker.reduction import merge_gamma
 
-    mix = mixture([0.6, 0.4], [14.0, 14.0], [extent(0.3, 0.2, 0.0)] * 2)
-    mix = Mixture(mix.w, np.full(2, shape), np.full(2, shape / 12.0), mix.m, mix.P, mix.v,
-                  mix.V, mix.label)
+    mix = evolve(mixture([0.6, 0.4], [14.0, 14.0], [extent(0.3, 0.2, 0.0)] * 2),
+                 alpha=np.full(2, shape), beta=np.full(2, shape / 12.0))
     with np.errstate(all='raise'):
         out = merge_groups(mix, [np.arange(2)])
         a, b = merge_gamma(mix.w, mix.alpha, mix.beta)
