@@ -804,8 +804,6 @@ def test_a_track_both_at_the_sensor_and_sparse_is_counted_once():
     and its half turn of beams, all in view, far outnumber its 10 expected returns, so
     it is both at_sensor and sparse. It is dropped once, with its weight, and counted as
     at_sensor alone: the diagnostics' counts add up to the components dropped."""
-    from extended_tracker.sensing.scan import scan_to_points
-
     extra = component_at(0.1, 0.0)
     vis = detection_model(extra, scan_to_points(walker_scan()),
                           from_dict({'background': {'enabled': False}}))
