@@ -481,6 +481,30 @@ def test_closed_form_eigenvalues_and_outlines():
         np.testing.assert_allclose(q, 1.0, rtol=1e-8)
 
 
+@pytest.mark.parametrize('cls', ['Mixture', 'PairUpdate', 'Estimates'])
+def test_take_selects_the_same_rows_of_every_field(cls):
+    """``take`` on the row-wise containers picks ``idx`` from each of their fields, for an
+    index array (reordering, repeating) and a boolean mask: a field left whole kept its
+    old rows beside the others' new ones (the estimates' visibility, once relabelling or
+    a join reordered or dropped objects, went unnoticed by every other test)."""
+    import dataclasses
+
+    from extended_tracker import ggiw, state
+
+    kind = getattr(ggiw, cls, None) or getattr(state, cls)
+    k = 5
+    rng = np.random.default_rng(7)
+    shapes = {'m': (4,), 'P': (4, 4), 'V': (2, 2), 'X': (2, 2)}
+    rows = {f.name: rng.normal(size=(k,) + shapes.get(f.name, ()))
+            for f in dataclasses.fields(kind)}
+    obj = kind(**rows)
+    for idx in (np.array([3, 0, 3]), np.array([True, False, False, True, True])):
+        got = obj.take(idx)
+        assert type(got) is kind
+        for name, value in rows.items():
+            np.testing.assert_array_equal(getattr(got, name), value[idx], err_msg=name)
+
+
 def test_cached_tables_are_shared_read_only_and_equal_a_fresh_computation():
     """The memoised tables (CV matrices here) are one read-only object per argument tuple,
     with the values the undecorated function computes."""
