@@ -222,8 +222,12 @@ def test_travel_is_counted_beyond_the_first_extent():
     """
     ex = from_dict({'extraction': {'confirm_detections': 0}}).extraction
     state = _report(FilterState.initial(from_dict({})), 0.0, semi=0.5)
-    for x in np.linspace(0.05, 0.55, 11):                # the centre creeps 0.55 m
+    for i, x in enumerate(np.linspace(0.05, 0.55, 11)):  # the centre creeps 0.55 m
         state = _report(state, x, semi=0.3)                # while the extent shrinks
+        if i == 3:                                         # 0.2 m from where it began
+            # within its first extent: no travel, 0 and not a shortfall (a moved_distance
+            # of 0 counts every confirmed label as moved)
+            assert state.confirmed_travel(np.array([7]), ex).tolist() == [0.0]
     assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.05)
     state = _report(state, 1.2, semi=0.3)                  # then it really goes
     assert np.allclose(state.confirmed_travel(np.array([7]), ex), 0.7)
