@@ -595,6 +595,37 @@ def test_an_entry_that_is_not_a_mapping_is_refused_as_the_node_refuses_it(tmp_pa
         load_yaml(path)
 
 
+@pytest.mark.parametrize('text', ['', '# no parameters yet\n'])
+def test_an_empty_parameter_file_gives_the_defaults_as_the_node_takes_it(tmp_path, text):
+    """A parameter file with nothing in it (or comments only): the node starts with its
+    defaults, and so do the offline tools, rather than refuse a file that is not a
+    mapping."""
+    path = tmp_path / 'empty.yaml'
+    path.write_text(text)
+    h = NodeHarness(args=['--ros-args', '--params-file', str(path)])
+    try:
+        assert h.node.cfg == TrackerConfig() and h.node.unknown_parameters == []
+    finally:
+        h.close()
+    assert load_yaml(path) == TrackerConfig()
+
+
+def test_a_section_repeated_as_a_scalar_is_an_unknown_parameter_node_and_offline(tmp_path):
+    """A section written again as a plain value: rcl keeps the section's parameters and
+    gives the node the value as a parameter named after the section, which it does not
+    have (named once, ignored); the offline tools, which refuse unknown names, refuse it
+    with its name rather than fail merging a mapping with a number."""
+    path = tmp_path / 'robot.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    model:\n      mode: phd\n    model: 3\n')
+    h = NodeHarness(args=['--ros-args', '--params-file', str(path)])
+    try:
+        assert h.node.cfg.model.mode == 'phd' and h.node.unknown_parameters == ['model']
+    finally:
+        h.close()
+    with pytest.raises(ConfigError, match="parameter 'model' is not of the form section.key"):
+        load_yaml(path)
+
+
 def test_a_parameter_file_without_the_tracker_or_with_several_is_refused(tmp_path):
     path = tmp_path / 'other.yaml'
     path.write_text('laser_driver:\n  ros__parameters:\n    frame_id: laser\n')
