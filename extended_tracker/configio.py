@@ -197,13 +197,11 @@ def dump_ros_yaml(cfg: TrackerConfig, node_name: str = '/**') -> str:
     ``cfg`` as a ROS 2 parameters file (``/**: ros__parameters:``), one comment per field
     with its description, unit and valid range.
     """
-    from dataclasses import fields, is_dataclass
+    from dataclasses import fields
 
     lines = [f'{node_name}:', '  ros__parameters:']
-    for section in fields(cfg):
+    for section in fields(cfg):                    # every field of the tree is a section
         sub = getattr(cfg, section.name)
-        if not is_dataclass(sub):
-            continue
         doc = (type(sub).__doc__ or '').strip().splitlines()[0]
         lines.append(f'    {section.name}:  # {doc}')
         for f in fields(sub):
