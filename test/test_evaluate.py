@@ -1,6 +1,7 @@
 """Evaluation: a simulated bag replayed and scored against its truth, from the command line."""
 
 import json
+import re
 from pathlib import Path
 import subprocess
 import sys
@@ -252,6 +253,13 @@ def test_simulate_command_writes_a_bag_and_its_truth(tmp_path, capsys):
         assert main(['simulate', str(tmp_path / 'refused')] + args) == 2
         assert fragment in capsys.readouterr().err
         assert not (tmp_path / 'refused').exists()
+    # the library call names the scenes too (the command line's choices refuse it first)
+    from extended_tracker.errors import BagError
+    from extended_tracker.sim.bag import SCENE_OF, write_sim_bag
+
+    with pytest.raises(BagError, match=re.escape(f"unknown scene 'crowd'; choose one of "
+                                                 f"{sorted(SCENE_OF)}")):
+        write_sim_bag(tmp_path / 'refused', 'crowd', 0, 1.0)
     assert sorted(p.name for p in tmp_path.iterdir()) == ['sim']
 
 
