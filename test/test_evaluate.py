@@ -59,6 +59,14 @@ def test_replayed_bag_scores_against_its_truth(tmp_path):
     (tmp_path / 'mixed.json').write_text(json.dumps(truth))
     mixed, _, _ = evaluate_bag(tmp_path / 'out', tmp_path / 'mixed.json')
     assert (mixed.hidden, mixed.hidden_kept) == (0, 0)
+    # tracks whose stamp the truth lacks (its first two scans cut) are passed over and
+    # the rest scored as before
+    truth = json.loads((tmp_path / 'scans' / 'truth.json').read_text())
+    del truth['scans'][:2]
+    (tmp_path / 'cut.json').write_text(json.dumps(truth))
+    cut, cut_per, cut_stamps = evaluate_bag(tmp_path / 'out', tmp_path / 'cut.json')
+    assert cut.scans == 58 and cut_stamps.tolist() == stamps[2:].tolist()
+    assert [g.total for g in cut_per] == [g.total for g in per[2:]]
 
 
 def test_the_readme_figures_of_a_scene_that_starts_with_a_person_standing(tmp_path):
@@ -310,7 +318,11 @@ def test_results_go_between_the_readme_markers_and_nowhere_else(tmp_path, monkey
     assert main(['results', '--readme', str(readme)]) == 0 and readme.read_text() == text
     capsys.readouterr()
     (tmp_path / 'plain.md').write_text('# no markers\n')
+    (tmp_path / 'begun.md').write_text('# x\n<!-- results:begin -->\nold\n')  # one of two
+    (tmp_path / 'ended.md').write_text('# x\nold\n<!-- results:end -->\n')
     for path, fragment in ((tmp_path / 'plain.md', 'has no <!-- results:begin -->'),
+                           (tmp_path / 'begun.md', 'has no <!-- results:begin -->'),
+                           (tmp_path / 'ended.md', 'has no <!-- results:begin -->'),
                            (tmp_path / 'missing.md', 'cannot read')):
         assert main(['results', '--readme', str(path)]) == 2
         assert fragment in capsys.readouterr().err
