@@ -208,6 +208,14 @@ def test_the_evaluate_plot_is_gospa_and_the_counts_against_seconds(tmp_path, sav
     assert max(est_line.get_ydata()) > 0
     assert (bottom.get_xlabel(), top.get_ylabel(), bottom.get_ylabel()) == \
         ('time (s)', 'm', 'objects')
+    # the counts are of the scored region, as the scores are: one holding nothing (the
+    # scanner's first 0.5 m) counts no true and no estimated object
+    truth = json.loads((tmp_path / 'scans' / 'truth.json').read_text())
+    truth['info']['view'][2] = 0.5
+    (tmp_path / 'near.json').write_text(json.dumps(truth))
+    evaluate_bag(tmp_path / 'out', tmp_path / 'near.json', plot=tmp_path / 'near.png')
+    true_line, est_line = saved_figures[1].axes[1].get_lines()
+    assert not true_line.get_ydata().any() and not est_line.get_ydata().any()
 
 
 def test_the_results_do_not_rest_on_the_last_bit(monkeypatch):
