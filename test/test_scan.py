@@ -54,6 +54,14 @@ def test_configured_range_limits_tighten_the_scans_own():
     loose = scan_to_points(make_scan(ranges, angle_min=0.0, inc=0.1), min_range=0.01,
                            max_range=50.0)
     assert loose.beam.tolist() == [1, 2, 3, 4, 5]      # the scan's own 0.1 m still holds
+    assert loose.range_max == 10.0                     # and its own 10 m
+    # limits that leave no range between them (min_range beyond the scan's range_max):
+    # every beam is invalid, a NaN counted as nan and not also as above_max
+    none_left = scan_to_points(make_scan(ranges + [np.nan, np.inf], angle_min=0.0, inc=0.1),
+                               min_range=12.0)
+    assert len(none_left.beam) == 0
+    assert none_left.masked == {'nan': 1, 'pos_inf': 1, 'neg_inf': 0, 'below_min': 6,
+                                'above_max': 0}
 
 
 def test_zero_ranges_of_drivers_count_below_min():
@@ -163,6 +171,30 @@ def test_the_sector_area_and_the_beam_clutter_density():
     c = np.exp(sp.beam_clutter_log_density(pts))
     total = np.sum(c * rr.ravel()) * (13.0 / n_r) * (fov / n_t)
     assert total == pytest.approx(1 - 0.1 / (2 * 13.0), abs=1e-6)
+
+
+@pytest.mark.parametrize('density', ['area', 'beam'])
+def test_a_one_beam_scan_has_a_finite_clutter_density(density):
+    """One beam covers no angle (no spacing to count): the sector's area and the per-beam
+    clutter density are held at their floors, finite, and the filter steps through such
+    scans without a division by zero (warnings are errors here)."""
+    import warnings
+
+    from extended_tracker.config import from_dict
+    from extended_tracker.pipeline import PipelineState, step
+
+    sp = scan_to_points(make_scan([3.0], angle_min=0.3))
+    assert sp.fov == 0.0 and sp.area > 0.0
+    assert np.isfinite(sp.beam_clutter_log_density(sp.points)).all()
+    cfg = from_dict({'model': {'clutter_density': density}, 'background': {'enabled': False}})
+    state = PipelineState.initial(cfg)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        for k in range(5):
+            scan = make_scan([3.0], angle_min=0.3)
+            scan.header.stamp = Stamp(1, k * 100_000_000)
+            state, res = step(state, scan, cfg)
+    assert not np.isnan(state.filter.log_card).any() and res.diagnostics['detections'] == 1
 
 
 def test_non_numeric_ranges_are_refused():
