@@ -260,6 +260,34 @@ def test_an_object_across_the_sectors_edge_is_seen_in_part(x):
     assert np.arctan2(seen[1], seen[0]) == pytest.approx(0.5 * (bearing - half + edge), abs=1e-3)
 
 
+@pytest.mark.parametrize('occluder', [None, (2.0, 0.45), (2.0, 0.0)])   # open, half, whole
+def test_beams_listed_downwards_give_the_same_p_d(occluder):
+    """
+    A driver may list its beams from left to right (a negative angle_increment): the same
+    beams listed the other way round give the same p_D, visible fraction, centroid
+    offset and hidden flags, in the open and half or wholly behind an occluder (the p_D
+    model looks beams up by ascending angle, whatever order the message has).
+    """
+    import dataclasses
+
+    objects = [SimObject((5.0, 0.0), a=0.25, b=0.25)]
+    if occluder:
+        objects.append(SimObject(occluder, a=0.2, b=0.45))
+    spec = LaserSpec(noise_std=0.0, dropout=0.0)
+    (scan, _), = simulate(Scene(tuple(objects), laser=spec), 0.1, seed=0)
+    down = dataclasses.replace(scan, angle_min=scan.angle_max, angle_max=scan.angle_min,
+                               angle_increment=-scan.angle_increment,
+                               ranges=scan.ranges[::-1].copy())
+    mix = component_at(5.0, 0.0)
+    up, dn = (detection_model(mix, scan_to_points(s), CFG) for s in (scan, down))
+    assert up.p_d[0] == pytest.approx(dn.p_d[0], abs=1e-9)
+    assert up.visible[0] == pytest.approx(dn.visible[0], abs=1e-9)
+    np.testing.assert_allclose(dn.offset, up.offset, atol=1e-9)
+    assert np.array_equal(dn.outside, up.outside) and np.array_equal(dn.shadowed, up.shadowed)
+    assert up.p_d[0] == pytest.approx({None: 0.9, (2.0, 0.0): 0.0}.get(occluder, 0.45),
+                                      abs=0.08)
+
+
 def test_a_walker_leaving_across_the_sectors_edge_is_followed_out():
     """
     A walker crossing the sector's edge at 1.4 m/s, 3 m from the scanner, is reported
