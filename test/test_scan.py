@@ -62,6 +62,13 @@ def test_configured_range_limits_tighten_the_scans_own():
     assert len(none_left.beam) == 0
     assert none_left.masked == {'nan': 1, 'pos_inf': 1, 'neg_inf': 0, 'below_min': 6,
                                 'above_max': 0}
+    # a return between the two (beyond the scan's 10 m, short of the 12 m asked for) is
+    # the driver's "no return": counted once, as above_max, so the counts add up to the
+    # beams
+    between = scan_to_points(make_scan([11.0, 3.0, np.nan], angle_min=0.0, inc=0.1),
+                             min_range=12.0)
+    assert between.masked == {'nan': 1, 'pos_inf': 0, 'neg_inf': 0, 'below_min': 1,
+                              'above_max': 1}
 
 
 def test_zero_ranges_of_drivers_count_below_min():

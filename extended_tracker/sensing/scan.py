@@ -229,8 +229,9 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
 
     Notes
     -----
-    Invalid beams: NaN, +inf, -inf, below ``range_min``, above ``range_max``. A scan with no
-    valid beam (or no beam) converts to zero points: the caller runs a predict-only step.
+    Invalid beams: NaN, +inf, -inf, below ``range_min``, above ``range_max``, each beam
+    counted under one kind. A scan with no valid beam (or no beam) converts to zero
+    points: the caller runs a predict-only step.
 
     """
     a0 = _finite('angle_min', scan.angle_min)
@@ -279,6 +280,9 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
     below = fin < r_lo
     above = (fin > r_hi) if range_max_inclusive else (fin >= r_hi)
     above &= finite
+    # a return at or beyond the scan's range_max is its driver's "no return", whatever
+    # the configured min_range says: counted once, as above_max
+    below &= ~above
     valid = finite & ~below & ~above
     masked = {'nan': int(np.count_nonzero(is_nan)), 'pos_inf': int(np.count_nonzero(pos_inf)),
               'neg_inf': int(np.count_nonzero(neg_inf)),
