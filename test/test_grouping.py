@@ -57,6 +57,12 @@ def test_an_l_of_two_thin_pieces_is_reported_as_the_rectangle_around_it():
     ped = out.take(np.array([1]))
     np.testing.assert_array_equal(ped.m, est.m[1:2])
     np.testing.assert_array_equal(ped.X, est.X[1:2])
+    # a thicker end piece (4 cm): the width adds the thickest piece's thickness
+    est = pieces([(3, (0.0, 0.0), (4.5, 0.0), 0.005, (5.0, 0.0), 30.0),
+                  (7, (0.0, 0.05), (0.0, 1.8), 0.02, (5.2, 0.1), 10.0)])
+    out, n = group_segments(est, np.array([5, 20]), gap=0.5, speed=2.0)
+    assert n == 1
+    np.testing.assert_allclose(out.X[0], np.diag([4.5 ** 2 / 3, 1.84 ** 2 / 3]), atol=1e-9)
 
 
 
