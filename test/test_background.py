@@ -139,6 +139,13 @@ def test_the_background_range_smooths_the_beams_returns_with_time_constant_learn
         want += gain * (float(r) - want)
     assert not keep.any()
     np.testing.assert_allclose(state.background, want, rtol=1e-12)
+    # after a pause longer than learn_time the gain is 1, not more: the background takes
+    # the return, without overshooting it
+    (scan, _), = simulate(Scene((), laser=LaserSpec(n_beams=3)), 0.1, seed=0)
+    scan.ranges = np.full(3, 4.05, dtype=np.float32)
+    state, _ = update_background(state, scan_to_points(scan), 2.5 * cfg.learn_time, cfg,
+                                 np.zeros(3, bool))
+    np.testing.assert_allclose(state.background, float(np.float32(4.05)), rtol=1e-12)
 
 
 def test_neighbours_are_the_beams_within_margin_across_at_the_range():
@@ -568,6 +575,23 @@ def test_a_return_thinner_than_the_beam_spacing_in_front_of_the_wall_is_learned_
     assert state.background[15] == pytest.approx(4.0, abs=0.01)
     assert state.second[15] == pytest.approx(3.5, abs=0.01)
     assert not any(k[15] for k in kept[36:])
+
+
+def test_beams_farther_apart_than_margin_across_leave_a_thin_return_thin():
+    """
+    Two poles two beams apart in front of the wall, with a margin (3 cm) that one beam's
+    spacing at 3.5 m (2.2 cm) is within and two beams' (4.3 cm) are not: the beam between
+    returns the wall, and the other pole is no neighbour, so each return is thinner than
+    the beam spacing and learned once ripe, as one pole alone is.
+    """
+    cfg = from_dict({'background': {'margin': 0.03}}).background
+    wall = np.full(31, 4.0)
+    poles = wall.copy()
+    poles[[15, 17]] = 3.5
+    state, kept = _fan([wall] * 15 + [poles] * 30, cfg)
+    assert kept[16][15] and kept[16][17]              # not at once
+    assert not any(k[15] or k[17] for k in kept[27:])  # learned by the 12th scan of them
+    assert state.background[[15, 17]] == pytest.approx([3.5, 3.5], abs=0.01)
 
 
 def test_a_full_turn_learns_the_same_wherever_its_seam_falls():
