@@ -280,8 +280,8 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
     below = fin < r_lo
     above = (fin > r_hi) if range_max_inclusive else (fin >= r_hi)
     above &= finite
-    # a return at or beyond the scan's range_max is its driver's "no return", whatever
-    # the configured min_range says: counted once, as above_max
+    # limits that leave no range between them (a configured min_range beyond range_max):
+    # a return at or beyond range_max counts as above_max only, so each beam counts once
     below &= ~above
     valid = finite & ~below & ~above
     masked = {'nan': int(np.count_nonzero(is_nan)), 'pos_inf': int(np.count_nonzero(pos_inf)),
