@@ -312,8 +312,9 @@ def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
     assert out.pairs.tolist() == [[3, 5]]
 
 
-@pytest.mark.parametrize('scans, junior', [((9, 9), 5), ((4, 9), 3), ((9, 4), 5)])
-def test_a_pair_joins_under_the_label_reported_longer_then_the_smaller(scans, junior):
+@pytest.mark.parametrize('scans, senior, junior', [((9, 9), 3, 5), ((4, 9), 5, 3),
+                                                   ((9, 4), 3, 5)])
+def test_a_pair_joins_under_the_label_reported_longer_then_the_smaller(scans, senior, junior):
     """The senior of a pair ready to join is the label reported in more scans in a row;
     between equals, the smaller label. The junior leaves the estimates and the mixture."""
     from mixtures import pedestrians, reported
@@ -326,6 +327,5 @@ def test_a_pair_joins_under_the_label_reported_longer_then_the_smaller(scans, ju
                     pairs=np.array([[3, 5]]), pair_runs=np.array([2]))
     state = reported(state, [3, 5], list(scans), [[0.0, 0.0], [0.3, 0.0]])
     out, est, joined, _ = join_pairs(state, _parts([3, 5], [0.0, 0.3], (0.1, 0.1)), cfg)
-    senior = 8 - junior
     assert joined.tolist() == [junior] and est.label.tolist() == [senior]
     assert out.mixture.label.tolist() == [senior] and out.reported.tolist() == [senior]
