@@ -402,6 +402,16 @@ def test_zero_header_stamps_take_the_record_time(tmp_path):
     assert out['/scan'][-1][1].header.stamp.sec == 0
 
 
+def test_the_summary_of_one_scan_and_of_none_gives_detections_per_scan():
+    """Detections per scan divide by the scans, one included; with none there is no
+    division by zero."""
+    from extended_tracker.replay import ReplaySummary
+
+    assert 'valid detections 7 (7.0 per scan)' in ReplaySummary(scans=1,
+                                                                valid_detections=7).lines()
+    assert 'valid detections 0 (0.0 per scan)' in ReplaySummary().lines()
+
+
 def test_cli_replay_prints_a_summary(tmp_path):
     write_ros2(tmp_path / 'in', seconds=1.0)
     exe = Path(sys.executable).with_name('extended-tracker')
@@ -830,10 +840,11 @@ def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
 def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     """Every figure of the summary against the step results of the replay, recomputed
     here: the times set to 1, 2, ... ms scan by scan (median and p99 known), and two
-    events of one kind whose reasons differ (the first is kept). Two ids are added to
+    events of one kind whose reasons differ (the first is kept). Three ids are added to
     some scans' estimates: one that strays 0.7 m and comes back (not moving), one that
-    goes 1.5 m and comes back (moving: the farthest it got counts, not where it ended);
-    with them the most objects of a scan are not the last scan's."""
+    goes exactly 1 m (not more: not moving), one that goes 1.5 m and comes back (moving:
+    the farthest it got counts, not where it ended); with them the most objects of a scan
+    are not the last scan's."""
     from dataclasses import fields
 
     import extended_tracker.replay as rp
@@ -841,7 +852,8 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     from mixtures import estimates
 
     real, seen = rp.step, []
-    added = {901: {20: 0.0, 21: 0.7, 22: 0.0}, 902: {20: 0.0, 21: 1.5, 22: 0.0}}
+    added = {901: {20: 0.0, 21: 0.7, 22: 0.0}, 902: {20: 0.0, 21: 1.5, 22: 0.0},
+             903: {20: 0.0, 21: 1.0}}
 
     def with_object(e, label, x):
         one = estimates([label], [[x, -5.0]])
@@ -874,6 +886,7 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     assert s.distinct_ids == len(travel) >= 3
     assert s.moving_ids == sum(v > 1.0 for v in travel.values()) >= 1
     assert travel[901] == pytest.approx(0.7) and travel[902] == pytest.approx(1.5)
+    assert travel[903] == 1.0
     assert s.mean_count == pytest.approx(sum(counts) / n)
     assert s.max_count == max(counts) > counts[-1]
     assert (f'valid detections {s.valid_detections} '
