@@ -69,6 +69,9 @@ def test_malformed_scans_never_raise_and_keep_the_estimates(mutate, fragment):
     assert res.event == 'malformed_scan' and fragment in res.error
     assert res.estimates.label.tolist() == last       # output not lost
     assert new_state is state                         # filter untouched
+    # in the tracked frame, at the scan's stamp; an unreadable header's at the last one
+    own = bad.header.stamp.sec * 10**9 + bad.header.stamp.nanosec if bad.header else None
+    assert res.stamp_ns == (own or state.last_stamp_ns) and res.frame_id == state.frame_id
 
 
 def test_empty_and_all_invalid_scans_are_predict_only():
@@ -108,6 +111,9 @@ def test_time_backwards_resets_the_filter():
         new_state, res = step(new_state, s, CFG)
     assert len(res.estimates) >= 1
     assert res.estimates.label.min() > state.last_estimates.label.max()
+    # by a nanosecond too
+    _, res = step(state, with_stamp(scans(21)[-1], state.last_stamp_ns - 1), CFG)
+    assert res.event == 'time_backwards'
 
 
 def test_gap_reinitialises_and_dt_is_never_negative():
