@@ -840,6 +840,25 @@ def test_a_track_both_at_the_sensor_and_sparse_is_counted_once():
     assert (with_it.diagnostics['at_sensor'], with_it.diagnostics['sparse']) == (1, 0)
 
 
+def test_a_track_both_out_of_view_and_at_the_sensor_counts_as_left_view():
+    """
+    A 90 deg scanner: a component just behind it whose outline holds the sensor is both
+    wholly out of the field of view (its half turn about a bearing behind misses the
+    sector) and at the sensor. It is dropped once and counted as having left the view
+    (as something leaving past the scanner's side is), not as at_sensor.
+    """
+    spec = LaserSpec(angle_min=-np.pi / 4, angle_max=np.pi / 4, n_beams=181,
+                     noise_std=0.0, dropout=0.0)
+    (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),), laser=spec), 0.1,
+                          seed=0)
+    cfg = from_dict({'background': {'enabled': False}})
+    extra = component_at(-0.2, -0.05)
+    vis = detection_model(extra, scan_to_points(scan), cfg)
+    assert vis.outside[0] and vis.at_sensor[0]
+    _, res = step(pipeline_with(extra, cfg, exactly(cfg, 1)), scan, cfg)
+    assert (res.diagnostics['left_view'], res.diagnostics['at_sensor']) == (1, 0)
+
+
 def walker_scan():
     """One scan, without dropouts, of a walker 5 m ahead."""
     (scan, _), = simulate(Scene((SimObject((5.0, 0.0), a=0.25, b=0.25),),
