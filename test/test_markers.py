@@ -134,6 +134,7 @@ def test_the_messages_carry_every_field_of_the_estimates():
         assert arrow['points'] == [{'x': x, 'y': y, 'z': 0.0},
                                    {'x': x + est.m[j, 2], 'y': y + est.m[j, 3], 'z': 0.0}]
         assert arrow['scale']['x'] > 0 and arrow['scale']['y'] > 0
+        assert by['outline', lab]['scale']['x'] > 0      # a line strip's width: visible
         assert by['outline', lab]['color'] == text['color'] == arrow['color']
         assert text['color']['a'] == 1.0
     # each id its own colour, over the first hundred ids
