@@ -288,6 +288,28 @@ def test_beams_listed_downwards_give_the_same_p_d(occluder):
                                       abs=0.08)
 
 
+@pytest.mark.parametrize('degrees, want', [(0.3, 0.0), (0.7, 0.9), (-0.4, 0.0),
+                                            (-0.6, 0.9)])
+def test_an_interval_between_two_beams_looks_at_the_nearer_one(degrees, want):
+    """
+    An object narrower than the beam spacing (a 2 cm pole 5 m away, beams 1 deg apart)
+    falls between two beams and is judged by the nearer one. The beam at 0 deg returns
+    something 2 m away; its neighbours at -1 and +1 deg return nothing. Bearings of
+    0.3 and -0.4 deg are nearest the blocked beam, so p_D is 0. Bearings of 0.7 and
+    -0.6 deg are nearest a free beam, so p_D is p_D0. Before, the beam at or above the
+    bearing was taken, so 0.3 deg read the free beam at 1 deg and -0.6 deg the blocked
+    one at 0.
+    """
+    step = np.radians(1.0)
+    ranges = np.full(21, np.inf)
+    ranges[10] = 2.0                                    # the beam at 0 deg
+    scan = ScanData(Header(Stamp(1, 0), 'laser'), -10 * step, 10 * step, step, 0.05, 13.0,
+                    ranges)
+    a = np.radians(degrees)
+    mix = component_at(5.0 * np.cos(a), 5.0 * np.sin(a), semi=0.01)
+    assert p_d(mix, scan_to_points(scan)) == pytest.approx(want, abs=1e-12)
+
+
 def test_a_walker_leaving_across_the_sectors_edge_is_followed_out():
     """
     A walker crossing the sector's edge at 1.4 m/s, 3 m from the scanner, is reported

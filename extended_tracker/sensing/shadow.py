@@ -135,8 +135,11 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         rng = scan.sorted_ranges if beam_range is scan.ranges else beam_range[order]
     lo = ang.searchsorted(bearing - half_angle, side='left')
     hi = ang.searchsorted(bearing + half_angle, side='right')
-    # an interval narrower than the beam spacing still sees its nearest beam
-    nearest = np.minimum(ang.searchsorted(bearing), len(ang) - 1)
+    # an interval narrower than the beam spacing still sees its nearest beam: the one
+    # just below the bearing or the one at or above it, whichever is nearer
+    up = np.minimum(ang.searchsorted(bearing), len(ang) - 1)
+    down = np.maximum(up - 1, 0)
+    nearest = np.where(bearing - ang[down] < ang[up] - bearing, down, up)
     empty = hi <= lo
     lo = np.where(empty, nearest, lo)
     hi = np.where(empty, nearest + 1, hi)
