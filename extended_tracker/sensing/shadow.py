@@ -136,13 +136,15 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     lo = ang.searchsorted(bearing - half_angle, side='left')
     hi = ang.searchsorted(bearing + half_angle, side='right')
     # an interval narrower than the beam spacing still sees its nearest beam: the one
-    # just below the bearing or the one at or above it, whichever is nearer
-    up = np.minimum(ang.searchsorted(bearing), len(ang) - 1)
-    down = np.maximum(up - 1, 0)
-    nearest = np.where(bearing - ang[down] < ang[up] - bearing, down, up)
+    # just below the bearing or the one above it (where an empty interval's lo points),
+    # whichever is nearer
     empty = hi <= lo
-    lo = np.where(empty, nearest, lo)
-    hi = np.where(empty, nearest + 1, hi)
+    if np.logical_or.reduce(empty):
+        e = empty.nonzero()[0]
+        up = np.minimum(lo[e], len(ang) - 1)
+        down = np.maximum(up - 1, 0)
+        nearest = np.where(bearing[e] - ang[down] < ang[up] - bearing[e], down, up)
+        lo[e], hi[e] = nearest, nearest + 1
     width = hi - lo
     thr = r_near - margin
     blocked_n = np.zeros(k)
