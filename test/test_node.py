@@ -561,20 +561,24 @@ extended_tracker:
 PARAMS_NAMESPACE = {'robot1': '/robot1', 'robot1_keys': '/robot1'}
 
 
+def node_reading(path, namespace=None):
+    """The configuration and the unknown parameters of the node itself started with the
+    parameter file ``path`` (in ``namespace``, when given): the oracle of the offline
+    tools' reading."""
+    args = ['--ros-args', '--params-file', str(path)]
+    if namespace:
+        args += ['-r', f'__ns:={namespace}']
+    with NodeHarness(args=args) as h:
+        return h.node.cfg, h.node.unknown_parameters
+
+
 @pytest.mark.parametrize('case', sorted(ROBOT_PARAMS))
 def test_offline_tools_read_a_node_parameter_file_as_the_node_does(tmp_path, case):
     """`replay --config` on the node's parameter file: the node itself, started with it
     (in the namespace the file is written for), is the oracle."""
     path = tmp_path / 'robot.yaml'
     path.write_text(ROBOT_PARAMS[case])
-    args = ['--ros-args', '--params-file', str(path)]
-    if case in PARAMS_NAMESPACE:
-        args += ['-r', f'__ns:={PARAMS_NAMESPACE[case]}']
-    h = NodeHarness(args=args)
-    try:
-        from_node = h.node.cfg
-    finally:
-        h.close()
+    from_node, _ = node_reading(path, PARAMS_NAMESPACE.get(case))
     assert from_node != TrackerConfig()                  # the file did change something
     assert load_yaml(path) == from_node
 
@@ -602,11 +606,7 @@ def test_an_empty_parameter_file_gives_the_defaults_as_the_node_takes_it(tmp_pat
     mapping."""
     path = tmp_path / 'empty.yaml'
     path.write_text(text)
-    h = NodeHarness(args=['--ros-args', '--params-file', str(path)])
-    try:
-        assert h.node.cfg == TrackerConfig() and h.node.unknown_parameters == []
-    finally:
-        h.close()
+    assert node_reading(path) == (TrackerConfig(), [])
     assert load_yaml(path) == TrackerConfig()
 
 
@@ -617,11 +617,8 @@ def test_a_section_repeated_as_a_scalar_is_an_unknown_parameter_node_and_offline
     with its name rather than fail merging a mapping with a number."""
     path = tmp_path / 'robot.yaml'
     path.write_text('/**:\n  ros__parameters:\n    model:\n      mode: phd\n    model: 3\n')
-    h = NodeHarness(args=['--ros-args', '--params-file', str(path)])
-    try:
-        assert h.node.cfg.model.mode == 'phd' and h.node.unknown_parameters == ['model']
-    finally:
-        h.close()
+    from_node, unknown = node_reading(path)
+    assert from_node.model.mode == 'phd' and unknown == ['model']
     with pytest.raises(ConfigError, match="parameter 'model' is not of the form section.key"):
         load_yaml(path)
 
