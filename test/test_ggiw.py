@@ -22,8 +22,9 @@ from scipy.linalg import sqrtm
 from scipy.special import gammaln, logsumexp, multigammaln
 
 from extended_tracker.ggiw import (
-    cell_stats, IW_OFFSET, log_miss_factor, Mixture, predict, update_pairs,
+    cell_stats, IW_OFFSET, log_miss_factor, Mixture, PairUpdate, predict, update_pairs,
 )
+from extended_tracker.state import Estimates
 
 RHO = 0.25
 R = 0.03 ** 2 * np.eye(2)
@@ -460,7 +461,6 @@ def test_closed_form_eigenvalues_and_outlines():
     """eig2 against LAPACK; marker outlines lie on the extent ellipse (p-c)'X^-1(p-c) = 1."""
     from extended_tracker.ggiw import eig2
     from extended_tracker.messages import outline_xy
-    from extended_tracker.state import Estimates
 
     rng = np.random.default_rng(4)
     A = rng.normal(size=(50, 2, 2))
@@ -481,17 +481,14 @@ def test_closed_form_eigenvalues_and_outlines():
         np.testing.assert_allclose(q, 1.0, rtol=1e-8)
 
 
-@pytest.mark.parametrize('cls', ['Mixture', 'PairUpdate', 'Estimates'])
-def test_take_selects_the_same_rows_of_every_field(cls):
+@pytest.mark.parametrize('kind', [Mixture, PairUpdate, Estimates], ids=lambda c: c.__name__)
+def test_take_selects_the_same_rows_of_every_field(kind):
     """``take`` on the row-wise containers picks ``idx`` from each of their fields, for an
     index array (reordering, repeating) and a boolean mask: a field left whole kept its
     old rows beside the others' new ones (the estimates' visibility, once relabelling or
     a join reordered or dropped objects, went unnoticed by every other test)."""
     import dataclasses
 
-    from extended_tracker import ggiw, state
-
-    kind = getattr(ggiw, cls, None) or getattr(state, cls)
     k = 5
     rng = np.random.default_rng(7)
     shapes = {'m': (4,), 'P': (4, 4), 'V': (2, 2), 'X': (2, 2)}
