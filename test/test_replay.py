@@ -716,7 +716,10 @@ def test_cli_replay_with_a_preset(tmp_path, capsys):
     write_ros2(tmp_path / 'in', seconds=0.5)
     assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out'),
                  '--preset', 'leg_height', '--quiet']) == 0
-    assert 'scans            5' in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert 'scans            5' in out
+    # where the bag went; no plot line when no --plot was asked for
+    assert out.endswith(f'output bag       {tmp_path / "out"}\n') and '\nplot ' not in out
     cfg = tmp_path / 'c.yaml'
     cfg.write_text('model: {mode: phd}\n')
     assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'o2'), '--config',
@@ -752,6 +755,10 @@ def test_real_replays_every_folder_with_a_line_each(tmp_path, capsys):
     assert lines[0].split()[:3] == ['bag', 'scans', 'det/scan']
     plain, unstamped = lines[1].split(), lines[2].split()
     assert plain[0] == 'a_plain' and plain[1] == '20' and plain[-1] == 'defaults'
+    # det/scan: the returns inside [range_min, range_max) per scan, counted off the scans
+    returns = [np.count_nonzero((np.asarray(s.ranges) >= s.range_min)
+                                & (np.asarray(s.ranges) < s.range_max)) for s in sim_scans()]
+    assert plain[2] == f'{np.mean(returns):.1f}', (plain, np.mean(returns))
     assert unstamped[0] == 'b_unstamped' and unstamped[1:6] == plain[1:6]   # same tracks
     assert lines[3].startswith('  zero_stamp 20 (first: the header stamp is zero')
     assert lines[4] == f'bags and PNGs in {tmp_path / "out"}'
@@ -775,10 +782,12 @@ def test_real_on_one_bag_replays_it_and_on_no_bags_says_so(tmp_path, capsys):
         lines = capsys.readouterr().out.splitlines()
         assert lines[1].split()[:2] == [label, '20'], lines
         assert (tmp_path / f'out_{label}' / f'{label}.png').is_file()
-    assert main(['real', '--data', str(tmp_path / 'empty'), '--out',
-                 str(tmp_path / 'out_none')]) == 0
-    captured = capsys.readouterr()
-    assert 'no recordings at' in captured.err and not captured.out
+    (tmp_path / 'notes.txt').write_text('not a recording')
+    for data in ('empty', 'notes.txt'):       # a folder without bags; a file not a .bag
+        assert main(['real', '--data', str(tmp_path / data), '--out',
+                     str(tmp_path / 'out_none')]) == 0
+        captured = capsys.readouterr()
+        assert 'no recordings at' in captured.err and not captured.out
     # a path that is not there (a typo) is an error, not an empty folder
     assert main(['real', '--data', str(tmp_path / 'missing'), '--out',
                  str(tmp_path / 'out_none')]) == 2
@@ -835,6 +844,30 @@ def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
     assert '1 of 3 not replayed' in captured.err
     assert (tmp_path / 'out' / 'c_plain.png').is_file()
     assert not (tmp_path / 'out' / 'a_notes_tracks').exists()
+
+
+def test_real_replays_a_bag_whose_metadata_it_cannot_read_instead_of_skipping_it(
+        tmp_path, capsys, monkeypatch):
+    """Whether a folder is an earlier run's output is read off its metadata.yaml; one that
+    cannot be read is not known to be an output, so it is tried as a recording and its
+    line says why it failed (the reader cannot read it either), instead of the folder
+    being passed over as tracks."""
+    from extended_tracker.cli import main
+
+    data = tmp_path / 'real'
+    write_ros2(data / 'locked', seconds=0.5)
+    meta = data / 'locked' / 'metadata.yaml'
+    read_text = Path.read_text
+
+    def refuse(self, *args, **kwargs):
+        if self == meta:
+            raise PermissionError(13, 'Permission denied', str(self))
+        return read_text(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, 'read_text', refuse)
+    assert main(['real', '--data', str(data), '--out', str(tmp_path / 'out')]) == 1
+    line = capsys.readouterr().out.splitlines()[1]
+    assert line.startswith(f'{"locked":48s} not replayed: ') and 'Permission denied' in line
 
 
 def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
