@@ -158,6 +158,11 @@ def test_build_message_fills_defaults_converts_values_and_refuses_unknown_fields
     np.testing.assert_array_equal(obj.position_covariance, np.zeros(4))
     assert obj.extent.shape == (4,) and type(obj.id) is int and obj.id == 7
     assert (obj.position.x, obj.shape, obj.existence) == (0.0, 0, 0.0)
+    assert type(obj.existence) is float and type(obj.shape) is int
+    marker = build_message(store, 'visualization_msgs/msg/Marker',
+                           {'frame_locked': np.bool_(True)})
+    assert marker.frame_locked is True
+    assert build_message(store, 'visualization_msgs/msg/Marker').frame_locked is False
     head = build_message(store, 'std_msgs/msg/Header',
                          {'frame_id': np.str_('laser'),
                           'stamp': {'sec': np.int64(3), 'nanosec': np.uint32(5)}})
@@ -180,3 +185,17 @@ def test_the_message_definitions_come_from_the_installed_share_folder(monkeypatc
     dirs = _msg_dirs()
     assert dirs[0] == Path(sys.prefix) / 'share' / 'extended_tracker_msgs' / 'msg'
     assert dirs[-1] == ROOT / 'interfaces' / 'extended_tracker_msgs' / 'msg'
+
+
+def test_a_prefix_with_only_some_message_definitions_is_passed_over(tmp_path, monkeypatch):
+    """An ament prefix that holds one of the two .msg files (a half-removed install) is
+    not where the definitions are read from: the next place that has both is."""
+    from extended_tracker.bagio import find_msg_definitions, MSG_PACKAGE
+
+    partial = tmp_path / 'share' / MSG_PACKAGE / 'msg'
+    partial.mkdir(parents=True)
+    (partial / 'ExtendedObject.msg').write_text('float64 not_the_real_one\n')
+    monkeypatch.setenv('AMENT_PREFIX_PATH', str(tmp_path))
+    found = find_msg_definitions()
+    assert found == {f'{MSG_PACKAGE}/msg/{n}': (MSG_DIR / f'{n}.msg').read_text()
+                     for n in ('ExtendedObject', 'ExtendedObjectArray')}

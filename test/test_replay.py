@@ -298,6 +298,26 @@ def test_corrupt_and_missing_inputs_give_clear_errors(tmp_path):
     with pytest.raises(BagError, match=r'notes is not a ROS 2 bag: the folder has no '
                                        r'metadata.yaml$'):
         replay(tmp_path / 'notes', tmp_path / 'out', CFG, progress=False)
+    write_ros2(tmp_path / 'db', storage='sqlite3', seconds=0.5)      # the same for sqlite3
+    (tmp_path / 'db' / 'metadata.yaml').unlink()
+    with pytest.raises(BagError, match=r'no metadata.yaml beside db.db3 .*ros2 bag reindex'):
+        replay(tmp_path / 'db', tmp_path / 'out', CFG, progress=False)
+
+
+def test_a_ros1_bag_file_inside_a_ros2_bag_folder_is_read_as_itself(tmp_path):
+    """A storage file named is read through its folder's metadata.yaml, but a ROS 1 .bag
+    file is a whole recording: one kept inside a ROS 2 bag's folder is read, not the
+    folder's bag."""
+    from extended_tracker.bagio import open_scans
+
+    write_ros2(tmp_path / 'both', seconds=0.5)
+    write_ros1(tmp_path / 'both' / 'old.bag', seconds=0.5)
+    reader, conns = open_scans(tmp_path / 'both' / 'old.bag')
+    reader.close()
+    assert [c.topic for c in conns] == ['/base_scan']
+    reader, conns = open_scans(next((tmp_path / 'both').glob('*.db3')))
+    reader.close()
+    assert [c.topic for c in conns] == ['/scan']
     assert not (tmp_path / 'out').exists()
 
 
