@@ -44,6 +44,12 @@ def test_hand_computed_cases():
     # beyond the cut-off a pair counts as one missed and one false, not as a cut distance
     g = gospa(np.array([[0.0, 0.0]]), 0.04 * I, np.array([[5.0, 0.0]]), 0.04 * I)
     assert (g.n_missed, g.n_false) == (1, 1) and g.total == pytest.approx(2.0)
+    # exactly at the cut-off (d = 2 = c; identity extents make it exact): either way the
+    # pair costs c^p, and it is left unassigned (pairs are assigned only below c), so it
+    # gives no id to the truth
+    assert gw_distance([[0, 0]], I, [[2, 0]], I)[0, 0] == 2.0
+    g = gospa(np.array([[0.0, 0.0]]), I, np.array([[2.0, 0.0]]), I)
+    assert (g.n_missed, g.n_false, g.pairs) == (1, 1, ()) and g.total == pytest.approx(2.0)
 
 
 @st.composite
