@@ -51,10 +51,22 @@ def test_crowd_walkers_are_redrawn_until_nobody_overlaps():
     assert kept[0] == free[0]
 
 
-def test_a_crowd_that_cannot_fit_is_refused_not_drawn_forever():
-    with pytest.raises(ValueError, match='walkers fit without overlapping'):
-        # twelve walkers on a ring 1.5-1.6 m out, for 2 s: they cannot all keep apart
+def test_a_crowd_that_cannot_fit_is_refused_not_drawn_forever(monkeypatch):
+    import extended_tracker.sim.laser as laser
+
+    drawn = []
+
+    def counted(*args, **kwargs):
+        drawn.append(1)
+        return SimObject(*args, **kwargs)
+
+    monkeypatch.setattr(laser, 'SimObject', counted)
+    # twelve walkers on a ring 1.5-1.6 m out, for 2 s: they cannot all keep apart; given
+    # up after MAX_DRAWS draws a walker
+    with pytest.raises(ValueError, match=r'walkers fit without overlapping in 2.0 s '
+                                         r'\(2400 draws\)'):
         crowd_scene(12, seed=1, range_max=2.0, seconds=2.0)
+    assert len(drawn) == laser.MAX_DRAWS * 12 == 2400
 
 
 def test_the_bundled_bag_is_what_its_command_writes(tmp_path):
