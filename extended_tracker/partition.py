@@ -417,22 +417,30 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     n = len(points)
     if k >= n:
         return np.arange(n)
+    x, y = points[:, 0], points[:, 1]
     if init is None:
         rng = _seeded_generator(seed)
-        centres = [points[rng.integers(n)]]
+        first = points[rng.integers(n)]
+        centres = [first]
+        d2 = (x - first[0]) ** 2 + (y - first[1]) ** 2       # to the nearest centre so far
         for _ in range(1, k):
-            d2 = np.min(((points[:, None, :] - np.array(centres)[None]) ** 2).sum(-1), axis=1)
-            total = d2.sum()
+            total = np.add.reduce(d2)
             if total <= 0:
                 break
-            centres.append(points[rng.choice(n, p=d2 / total)])
+            # rng.choice(n, p=d2 / total) without its argument checks: the same cdf, the
+            # same single uniform draw, the same index
+            cdf = (d2 / total).cumsum()
+            cdf /= cdf[-1]
+            c = points[int(cdf.searchsorted(rng.random(), side='right'))]
+            centres.append(c)
+            np.minimum(d2, (x - c[0]) ** 2 + (y - c[1]) ** 2, out=d2)
         centres = np.array(centres)
     else:
-        centres = np.asarray(init, dtype=float).copy()
+        centres = np.array(init, dtype=float)
     labels = np.zeros(n, dtype=np.int64)
     for _ in range(iters):
-        d2 = ((points[:, None, :] - centres[None]) ** 2).sum(-1)
-        new = d2.argmin(axis=1)
+        new = ((x[:, None] - centres[:, 0]) ** 2 + (y[:, None] - centres[:, 1]) ** 2
+               ).argmin(axis=1)
         if _ and np.logical_and.reduce(new == labels):       # not array_equal's wrapper
             break
         labels = new
