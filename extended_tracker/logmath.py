@@ -30,16 +30,26 @@ def logsumexp(a, axis=None):
 
 def lse1(a: np.ndarray) -> float:
     """``logsumexp`` of a 1-D float array, for the hot loops (no argument checking)."""
-    if not a.size:
-        return -np.inf
-    m = np.maximum.reduce(a)
-    if m == -np.inf:
-        return -np.inf
-    return float(m + np.log(np.add.reduce(np.exp(a - m))))
+    return float(np.logaddexp.reduce(a, initial=-np.inf))
 
 
 def lse_last(a: np.ndarray) -> np.ndarray:
-    """``logsumexp`` over the last axis of an N-d float array (slices may be all ``-inf``)."""
+    """
+    ``logsumexp`` over the last axis of an N-d float array (slices may be all ``-inf``).
+
+    Notes
+    -----
+    Up to ``LSE_REDUCE_MAX`` elements, one ``logaddexp`` reduction: each step is
+    ``max + log1p(exp(-|x - y|))``, exact for ``-inf`` terms, so an all ``-inf`` slice
+    gives ``-inf`` without a warning. It costs two transcendentals an element against the
+    max-shifted sum's one, but it is one call in place of eleven, and most of a filter
+    step's arrays are small: on the 4-pedestrian step's own inputs (eight calls, some
+    1200 elements) 6.7 against 24.9 us a call. Larger arrays (the stress scene's
+    cardinality tables) take the shifted sum, faster from about 2000 elements. Both are
+    held to scipy's ``logsumexp`` to 1e-12 by the tests.
+    """
+    if a.size <= LSE_REDUCE_MAX:
+        return np.logaddexp.reduce(a, axis=-1, initial=-np.inf)
     # an all -inf slice is shifted by the lowest finite double instead of its max (exp
     # gives 0 either way) and its log(0) is never evaluated: no errstate (2 us) per call
     safe = np.maximum(np.maximum.reduce(a, axis=-1), _LOWEST)
@@ -47,6 +57,7 @@ def lse_last(a: np.ndarray) -> np.ndarray:
     return safe + np.log(s, out=neg_inf(s.shape), where=s > 0)
 
 
+LSE_REDUCE_MAX = 2048
 _LOWEST = np.finfo(float).min
 
 
