@@ -263,61 +263,79 @@ def esf_terms(log_a: np.ndarray, log_b: np.ndarray | None, min_work: int = LINEA
 def _inf_padded(table: np.ndarray, pad: int) -> np.ndarray:
     """``table`` with ``pad`` entries of ``-inf`` on each side: ``out[i + pad]`` is
     ``table[i]`` for ``i`` in range and ``-inf`` for ``-pad <= i < len(table) + pad``."""
-    edge = neg_inf(pad)
-    return np.concatenate([edge, table, edge])
+    out = neg_inf(len(table) + 2 * pad)
+    out[pad:pad + len(table)] = table
+    return out
 
 
-def _partition_terms(pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1,
-                     log_pc_fact, k_most):
+def _sum_tables(T: np.ndarray, W1: np.ndarray, pad: int) -> np.ndarray:
+    """
+    The tables the partition terms read by column ``j = k2 + r``, stacked and padded by
+    ``pad`` columns of ``-inf`` on each side (``out[:, pad + j]``): rows ``0..N_max`` are
+    ``T[n, j]``, row ``N_max + 1`` is ``W1[j]`` and row ``N_max + 2`` is ``W1[j - 1]``.
+    """
+    n_rows, width = T.shape
+    out = neg_inf((n_rows + 2, width + 2 * pad))
+    out[:n_rows, pad:pad + width] = T
+    out[n_rows, pad:pad + width] = W1
+    out[n_rows + 1, pad + 1:pad + 1 + width] = W1
+    return out
+
+
+def _partition_terms(pid, flat, single, act, la, k1, k2, ka, log_A, feasible, Z, pc_pad,
+                     pad: int):
     """
     ``Lambda_P(n)``, the ``Upsilon_0`` term and the per-cell ``Upsilon`` terms of a batch
     of partitions, all at once.
 
-    ``pid``, ``flat``, ``single``, ``la`` describe the batch's (partition, cell) rows, grouped
-    by partition in order (``pid`` local to the batch); the other arrays are per partition.
-    Returns ``lam (p, N_max + 1)``, ``u0 (p,)`` and ``(cells, values)`` to add into the
-    cells' log-Upsilon.
+    ``pid``, ``flat``, ``single``, ``act`` (active singleton) and ``la`` describe the
+    batch's (partition, cell) rows, grouped by partition in order (``pid`` local to the
+    batch); the other arrays are per partition. ``Z`` is :func:`_sum_tables` and
+    ``pc_pad`` the table ``(k-j)! p_c(k-j)``, both padded by ``pad`` (more than any
+    partition's active singletons). Returns ``lam (p, N_max + 1)``, ``u0 (p,)`` and
+    ``(cells, values)`` to add into the cells' log-Upsilon.
+
+    Notes
+    -----
+    Every term is a sum over ``r`` (active singletons detected) of a table entry at
+    ``k2 + r`` times ``pc_r = (k1 - r)! p_c(k1 - r) e_r(a_S)``: ``Lambda_P(n)`` reads
+    ``T[n]``, ``Upsilon_0`` reads ``W1`` and a non-singleton cell's term ``W1`` one column
+    left (one non-singleton fewer), so the three are one gather and one log-sum.
     """
     n_part = len(k1)
+    R = int(ka.max()) if n_part else 0
     # The active singletons (those some object may have produced) of each feasible
     # partition, packed into rows padded with -inf.
-    act = single & np.isfinite(la) & feasible[pid]
-    R = int(ka.max()) if n_part else 0
-    slot = act.cumsum() - 1
-    slot -= np.concatenate([[0], ka.cumsum()[:-1]])[pid]
+    slot = act.cumsum() - 1 - (ka.cumsum() - ka)[pid]
+    pa, sa = pid[act], slot[act]
     S = neg_inf((n_part, R))
-    S[pid[act], slot[act]] = la[act]
+    S[pa, sa] = la[act]
     r = np.arange(R + 1)
-    # the indices below run from -(R + 1) to k_most + R: out of range reads -inf
-    pad = R + 1
-    pc_pad, w1_pad = _inf_padded(log_pc_fact, pad), _inf_padded(W1, pad)
+    G = Z[:, pad + k2[:, None] + r]                     # (N_max + 3, p, R + 1)
+    pcg = pc_pad[pad + k1[:, None] - r]                 # (k1 - r)! p_c(k1 - r)
     B = None
     if R:
-        # coefficients of the leave-one-out sums (W an active singleton, below)
-        r2 = r[:-1]
-        B = (w1_pad[pad + k2[:, None] + r2[None, :]]
-             + pc_pad[pad + k1[:, None] - 1 - r2[None, :]])
-        B[r2[None, :] >= ka[:, None]] = NEG_INF
+        # coefficients of the leave-one-out sums (W an active singleton, below):
+        # W1[k2 + r] (k1 - 1 - r)! p_c(k1 - 1 - r) for r < ka
+        B = G[-2, :, :R] + pcg[:, 1:]
+        B[r[:R] >= ka[:, None]] = NEG_INF
     log_e, loo = esf_terms(S, B)                        # e_r(a_S), leave-one-out sums
-    # pc_r = (k1 - r)! p_c(k1 - r) e_r(a_S)
-    pc_r = pc_pad[pad + k1[:, None] - r[None, :]] + log_e
+    pc_r = pcg + log_e
     pc_r[~feasible] = NEG_INF
-    col = np.minimum(k2[:, None] + r[None, :], k_most)
-    lam = log_A[:, None] + lse_last(T[:, col] + pc_r[None, :, :]).T
-    u0 = log_A + lse_last(W1[col] + pc_r)
+    sums = lse_last(G + pc_r)                           # (N_max + 3, p)
+    lam = log_A[:, None] + sums[:-2].T
+    u0 = log_A + sums[-2]
     cells, vals = [], []
     # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
     rows = feasible[pid] & ~single
     if np.logical_or.reduce(rows):
-        u_ns = lse_last(w1_pad[pad + k2[:, None] - 1 + r[None, :]] + pc_r)
         pr = pid[rows]
         cells.append(flat[rows])
-        vals.append(log_A[pr] - la[rows] + u_ns[pr])
+        vals.append(log_A[pr] - la[rows] + sums[-1][pr])
     # W an active singleton: one singleton fewer, e_r of the others (leave one out)
     if R:
-        u_s = log_A[:, None] + loo
         cells.append(flat[act])
-        vals.append(u_s[pid[act], slot[act]])
+        vals.append(log_A[pa] + loo[pa, sa])
     if not cells:
         return lam, u0, np.zeros(0, dtype=np.int64), np.zeros(0)
     return lam, u0, np.concatenate(cells), np.concatenate(vals)
@@ -362,42 +380,49 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     log_w = np.asarray(log_w, dtype=float)
     n_comp, n_cells = log_g.shape
     n_max = len(log_card) - 1
-    log_nbar = lse1(log_w) if n_comp else NEG_INF
-    if not np.isfinite(log_nbar):
+    n_part = len(partitions)
+    if not n_part:
+        return _prediction_stands(log_w, n_cells, log_card, 0)
+    log_nbar = NEG_INF
+    if n_comp:
+        # log N-bar, log q0 N-bar and every cell's log psi_W N-bar, psi_W N-bar =
+        # sum_i w_i g_iW: log-sums over the components, one row each
+        table = np.empty((n_cells + 2, n_comp))
+        table[0] = log_w
+        np.add(log_w, log_qd, out=table[1])
+        np.add(log_w, log_g.T, out=table[2:])
+        sums = lse_last(table)
+        log_nbar = float(sums[0])
+    if log_nbar == NEG_INF:
         # no predicted objects: only clutter explains the scan
         log_nbar = 0.0
         log_q0 = 0.0
-    else:
-        log_q0 = lse1(log_w + log_qd) - log_nbar
-    # log a_W = log(psi_W / c^W), psi_W = sum_i w_i g_iW / Nbar
-    if n_comp:
-        log_psi = lse_last((log_w[:, None] + log_g).T) - log_nbar
-    else:
         log_psi = neg_inf(n_cells)
+    else:
+        log_q0 = float(sums[1]) - log_nbar
+        log_psi = sums[2:] - log_nbar
+    # log a_W = log(psi_W / c^W)
     log_a = log_psi - cell_log_c
-    n_part = len(partitions)
-    k_most = 0
-    if n_part:
-        # flatten: one row per (partition, cell)
-        sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
-        flat = np.concatenate([np.asarray(p, dtype=np.int64) for p in partitions])
-        pid = np.repeat(np.arange(n_part), sizes)
-        single = cell_size[flat] == 1
-        la = log_a[flat]
-        k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
-        k2 = sizes - k1
-        if clutter_cells is not None:
-            # a clutter cell is its detections as singletons that no component explains
-            # (a_W = -inf: inactive, clutter only): they count in k1, not as a cell in k2,
-            # and put no a_W into A_P
-            cc = clutter_cells[flat]
-            k2 -= np.bincount(pid, weights=cc, minlength=n_part).astype(np.int64)
-            k1 = k1 + np.bincount(pid, weights=np.where(cc, cell_size[flat], 0),
-                                  minlength=n_part).astype(np.int64)
-            la = np.where(cc, NEG_INF, la)
-            single = single | cc
-        # the most cells of a partition, a clutter cell counted as its detections
-        k_most = int((sizes if clutter_cells is None else k1 + k2).max())
+    # flatten: one row per (partition, cell)
+    sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
+    flat = np.concatenate(partitions).astype(np.int64, copy=False)
+    pid = np.repeat(np.arange(n_part), sizes)
+    single = cell_size[flat] == 1
+    la = log_a[flat]
+    k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
+    k2 = sizes - k1
+    if clutter_cells is not None:
+        # a clutter cell is its detections as singletons that no component explains
+        # (a_W = -inf: inactive, clutter only): they count in k1, not as a cell in k2,
+        # and put no a_W into A_P
+        cc = clutter_cells[flat]
+        k2 -= np.bincount(pid, weights=cc, minlength=n_part).astype(np.int64)
+        k1 = k1 + np.bincount(pid, weights=np.where(cc, cell_size[flat], 0),
+                              minlength=n_part).astype(np.int64)
+        la = np.where(cc, NEG_INF, la)
+        single = single | cc
+    # the most cells of a partition, a clutter cell counted as its detections
+    k_most = int((sizes if clutter_cells is None else k1 + k2).max())
     T = _log_lambda_table(log_q0, n_max, k_most)
     lf = _log_factorial(k_most + 1)
     need = k_most + 1
@@ -410,38 +435,40 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
     W1 = lse_last((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
-    lam_P = neg_inf((n_part, n_max + 1))
-    u0_terms = neg_inf(n_part)
     log_u_cell = neg_inf(n_cells)
-    if n_part:
-        n_active = np.bincount(pid, weights=single & np.isfinite(la),
-                               minlength=n_part).astype(np.int64)
-        log_A = np.bincount(pid, weights=np.where(single, 0.0, la), minlength=n_part)
-        # A non-singleton cell no object explains makes the partition impossible (clutter
-        # is singletons only): it contributes nothing.
-        feasible = np.isfinite(log_A)
-        ka = np.where(feasible, n_active, 0)
-        # Partitions are batched by their number of active singletons (terciles when
-        # there are many): a batch costs its size times its largest count squared, so
-        # padding a 5-singleton partition to 55 would waste most of the work.
-        if n_part >= BATCH_MIN_PARTITIONS and ka.max() >= BATCH_MIN_SINGLETONS:
-            bucket = np.quantile(ka, [1 / 3, 2 / 3]).searchsorted(ka, side='left')
-            for b in np.unique(bucket).tolist():
-                sel = (bucket == b).nonzero()[0]
-                rows = bucket[pid] == b
-                lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
-                    sel.searchsorted(pid[rows]), flat[rows], single[rows], la[rows],
-                    k1[sel], k2[sel], ka[sel], log_A[sel], feasible[sel], T, W1,
-                    log_pc_fact, k_most)
-                np.logaddexp.at(log_u_cell, cells, vals)
-        else:
-            # one batch: every partition, no selection to make
-            lam_P[:], u0_terms[:], cells, vals = _partition_terms(
-                pid, flat, single, la, k1, k2, ka, log_A, feasible, T, W1, log_pc_fact,
-                k_most)
+    singles_active = single & np.isfinite(la)
+    n_active = np.bincount(pid, weights=singles_active, minlength=n_part).astype(np.int64)
+    log_A = np.bincount(pid, weights=np.where(single, 0.0, la), minlength=n_part)
+    # A non-singleton cell no object explains makes the partition impossible (clutter
+    # is singletons only): it contributes nothing.
+    feasible = np.isfinite(log_A)
+    ka = np.where(feasible, n_active, 0)
+    act = singles_active & feasible[pid]
+    R = int(ka.max())
+    pad = R + 1
+    Z = _sum_tables(T, W1, pad)
+    pc_pad = _inf_padded(log_pc_fact, pad)
+    # Partitions are batched by their number of active singletons (terciles when
+    # there are many): a batch costs its size times its largest count squared, so
+    # padding a 5-singleton partition to 55 would waste most of the work.
+    if n_part >= BATCH_MIN_PARTITIONS and R >= BATCH_MIN_SINGLETONS:
+        lam_P = neg_inf((n_part, n_max + 1))
+        u0_terms = neg_inf(n_part)
+        bucket = np.quantile(ka, [1 / 3, 2 / 3]).searchsorted(ka, side='left')
+        for b in np.unique(bucket).tolist():
+            sel = (bucket == b).nonzero()[0]
+            rows = bucket[pid] == b
+            lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
+                sel.searchsorted(pid[rows]), flat[rows], single[rows], act[rows], la[rows],
+                k1[sel], k2[sel], ka[sel], log_A[sel], feasible[sel], Z, pc_pad, pad)
             np.logaddexp.at(log_u_cell, cells, vals)
+    else:
+        # one batch: every partition, no selection to make
+        lam_P, u0_terms, cells, vals = _partition_terms(
+            pid, flat, single, act, la, k1, k2, ka, log_A, feasible, Z, pc_pad, pad)
+        np.logaddexp.at(log_u_cell, cells, vals)
 
-    per_partition = lse_last(lam_P + log_card[None, :]) if n_part else np.zeros(0)
+    per_partition = lse_last(lam_P + log_card[None, :])
     log_L = lse1(per_partition)
     if log_L == NEG_INF:
         return _prediction_stands(log_w, n_cells, log_card, n_part)
