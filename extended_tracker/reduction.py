@@ -73,7 +73,12 @@ def merge_gamma(w, alpha, beta):
     return float(a), float(a / mean)
 
 
-_HALF_J = 0.5 * np.arange(D)                  # (j - 1) / 2 for j = 1..d
+# the IW sums over j = 1..d below are written for d = 2, by the duplication formulas
+# psi(z) + psi(z + 1/2) = 2 psi(2z) - 2 log 2 and psi_1(z) + psi_1(z + 1/2) = 4 psi_1(2z):
+# sum_j psi((nu - j + 1) / 2) = 2 psi(nu - 1) - 2 log 2, and the same sum of psi_1 is
+# 4 psi_1(nu - 1) (one evaluation each instead of two and a sum)
+assert D == 2
+_LOG4 = 2.0 * np.log(2.0)
 
 
 def _solve_nu(target, lo, hi, start, iters=60):
@@ -98,8 +103,8 @@ def _solve_nu(target, lo, hi, start, iters=60):
     k = len(target)
 
     def f(nu, t):
-        x = 0.5 * nu[:, None] - _HALF_J
-        return D * np.log(nu) - digamma(x).sum(axis=1) - t, x
+        x = nu - 1.0
+        return 2.0 * (np.log(nu) - digamma(x)) + (_LOG4 - t), x
 
     ends, _ = f(np.concatenate([lo, hi]), np.concatenate([target, target]))
     below, above_hi = ends[:k] <= 0, ends[k:] >= 0
@@ -108,25 +113,25 @@ def _solve_nu(target, lo, hi, start, iters=60):
     if not np.logical_or.reduce(free):
         return out
     t, a, b = target[free], lo[free], hi[free]
-    excess = t - D * np.log(2.0)
+    excess = t - _LOG4
     with np.errstate(divide='ignore', invalid='ignore'):
-        guess = 0.5 * D * (D + 1) / excess + 0.75
+        guess = 3.0 / excess + 0.75
     nu = np.minimum(np.maximum(np.where(excess > 0, guess, start[free]), a), b)
-    for _ in range(iters):
-        val, x = f(nu, t)
-        above = val > 0                                # the root is above nu
-        a = np.where(above, nu, a)
-        b = np.where(above, b, nu)
-        fp = D / nu - 0.5 * _trigamma(x).sum(axis=1)
-        with np.errstate(divide='ignore', invalid='ignore'):    # fp = 0: bisection below
+    with np.errstate(divide='ignore', invalid='ignore'):        # fp = 0: bisection below
+        for _ in range(iters):
+            val, x = f(nu, t)
+            above = val > 0                                # the root is above nu
+            a = np.where(above, nu, a)
+            b = np.where(above, b, nu)
+            fp = 2.0 / nu - 2.0 * _trigamma(x)
             nxt = nu / (1.0 + val / (nu * fp))                   # u - g(u) / g'(u)
-        # inclusive: at the root (val == 0) the step stays on an end of the bracket,
-        # and bisecting from there wanders off the root for a dozen steps
-        nxt = np.where((nxt >= a) & (nxt <= b), nxt, 0.5 * (a + b))
-        done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
-        nu = nxt
-        if done:
-            break
+            # inclusive: at the root (val == 0) the step stays on an end of the bracket,
+            # and bisecting from there wanders off the root for a dozen steps
+            nxt = np.where((nxt >= a) & (nxt <= b), nxt, 0.5 * (a + b))
+            done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
+            nu = nxt
+            if done:
+                break
     out[free] = nu
     return out
 
@@ -158,9 +163,8 @@ def _nu_floor(mean_trace, t):
 
 
 def _iw_psi_sum(nu):
-    """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` for scalar or (k,) ``nu``."""
-    nu = np.asarray(nu, dtype=float)
-    return digamma(0.5 * nu[..., None] - _HALF_J).sum(axis=-1)
+    """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` for scalar or (k,) ``nu`` (d = 2)."""
+    return 2.0 * digamma(np.asarray(nu, dtype=float) - 1.0) - _LOG4
 
 
 def merge_iw(w, v, V):
@@ -211,15 +215,16 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
 
     """
     g = len(groups)
-    sizes = np.array([len(x) for x in groups])
+    sizes = np.fromiter(map(len, groups), dtype=np.int64, count=g)
     idx = np.concatenate(groups)
-    starts = np.concatenate([[0], sizes.cumsum()[:-1]])
+    starts = sizes.cumsum() - sizes
     gid = np.repeat(np.arange(g), sizes)
     w = mix.w[idx]
     W = np.add.reduceat(w, starts)
     wn = w / W[gid]
-    m = np.add.reduceat(wn[:, None] * mix.m[idx], starts)
-    dm = mix.m[idx] - m[gid]
+    m_i = mix.m[idx]
+    m = np.add.reduceat(wn[:, None] * m_i, starts)
+    dm = m_i - m[gid]
     P = np.add.reduceat(wn[:, None, None] * (mix.P[idx] + dm[:, :, None] * dm[:, None, :]),
                         starts)
     # Gamma: log a - digamma(a) = log E[g] - E[log g] =: c
@@ -230,25 +235,27 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     a = _gamma_shape_start(c)
     for _ in range(20):
         step = (np.log(a) - digamma(a) - c) / (1 / a - _trigamma(a))
-        a = np.where(a - step > 0, a - step, a / 2)
+        new = a - step
+        a = np.where(new > 0, new, a / 2)
         if (np.abs(step) <= 1e-10 * a).all():
             break
     b = a / mean
     # inverse Wishart
+    V_i = mix.V[idx]
     nu_i = mix.v[idx] - D - 1
-    Psi = np.add.reduceat((wn * nu_i)[:, None, None] * inv2(mix.V[idx]), starts)
-    elog_x = np.add.reduceat(wn * (logdet_spd2(mix.V[idx]) - _iw_psi_sum(nu_i)), starts)
+    wnu = wn * nu_i
+    Psi = np.add.reduceat(wnu[:, None, None] * inv2(V_i), starts)
+    elog_x = np.add.reduceat(wn * (logdet_spd2(V_i) - _iw_psi_sum(nu_i)), starts)
     target = elog_x + logdet_spd2(Psi)
     mean_x = np.add.reduceat(wn[:, None, None] * mix.expected_extent(idx), starts)
     iPsi = inv2(Psi)
     lo = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
     nu = _solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
-                   np.add.reduceat(wn * nu_i, starts))
+                   np.add.reduceat(wnu, starts))
     V = _floor_extent(nu[:, None, None] * iPsi, nu + D + 1)
     # label of the heaviest member
-    order = np.lexsort((-weight_key(w), gid))
-    first = order[starts]
-    label = mix.label[idx][first]
+    first = np.lexsort((-weight_key(w), gid))[starts]
+    label = mix.label[idx[first]]
     return Mixture(W, a, b, m, symmetrize(P), nu + D + 1, symmetrize(V), label)
 
 
