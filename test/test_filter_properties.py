@@ -1,9 +1,12 @@
 """Property tests (Hypothesis, deterministic profile) of the filter core's invariants."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
+from extended_tracker import cphd
 from extended_tracker.config import TrackerConfig
 from extended_tracker.cphd import (
     _predict_cardinality_log, predict_cardinality, resize_cardinality,
@@ -416,28 +419,60 @@ def test_cardinality_prediction_matches_enumeration(raw, p_s, birth):
     a Poisson number is born; enumerate every l and every number of survivors with
     scipy's binomial and Poisson pmfs, drop what lies beyond N_max and renormalise.
     """
-    from scipy.stats import binom, poisson
-
     p = np.asarray(raw) + 1e-9
     p = p / p.sum()
-    n_max = len(p) - 1
-    want = np.zeros(n_max + 1)
-    for n_prev, p_prev in enumerate(p):
-        for s in range(n_prev + 1):
-            born = np.arange(n_max + 1 - s)
-            want[s + born] += p_prev * binom.pmf(s, n_prev, p_s) * poisson.pmf(born, birth)
-    want /= want.sum()
+    want = _enumerated_prediction(p, p_s, birth)
     with np.errstate(divide='ignore'):                    # p_s = 1: log(1 - p_s)
         for form in (predict_cardinality, _predict_cardinality_log):
             got = np.exp(form(np.log(p), p_s, birth))
             np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-15)
 
 
+def _enumerated_prediction(p, p_s, birth):
+    """The predicted pmf by enumeration with scipy's binomial and Poisson pmfs."""
+    from scipy.stats import binom, poisson
+
+    n_max = len(p) - 1
+    want = np.zeros(n_max + 1)
+    for n_prev, p_prev in enumerate(p):
+        for s in range(n_prev + 1):
+            born = np.arange(n_max + 1 - s)
+            want[s + born] += p_prev * binom.pmf(s, n_prev, p_s) * poisson.pmf(born, birth)
+    return want / want.sum()
+
+
+@pytest.mark.parametrize('p_s, n_max, product', [
+    (0.9, 40, True), (1e-3, 40, True), (1.0 - 1e-9, 20, True), (1.0 - 1e-9, 40, False),
+    (1e-12, 40, False), (0.9, 41, False)])
+def test_cardinality_thinning_forms_against_enumeration(monkeypatch, p_s, n_max, product):
+    """
+    The thinning runs as exact binomials times powers of p_S / q_S and q_S where those
+    stay within the double range (N_max times the larger log below 600) and from the
+    weights' logs elsewhere: a survival of 1 - 1e-9 over N_max 20 (20 log(1e9) = 414)
+    takes products, over 40 (829) the logs, and so do 1e-12 over 40 and an N_max past
+    THIN_PRODUCT_MAX (set to 40 here, for a short enumeration). Both against the
+    enumeration (scipy's pmfs), the form taken checked by its table.
+    """
+    monkeypatch.setattr(cphd, 'THIN_PRODUCT_MAX', 40)
+    rng = np.random.default_rng(n_max)
+    p = rng.random(n_max + 1) + 1e-3
+    p /= p.sum()
+    tables = []
+    binomials = cphd._binomials
+    monkeypatch.setattr(cphd, '_binomials', lambda n: tables.append(n) or binomials(n))
+    got = np.exp(predict_cardinality(np.log(p), p_s, 0.7))
+    assert bool(tables) == product
+    # tolerance: enumeration and the two forms round differently, each term within
+    # some N_max units in the last place
+    np.testing.assert_allclose(got, _enumerated_prediction(p, p_s, 0.7), rtol=1e-9,
+                               atol=1e-15)
+
+
 def test_cardinality_prediction_limits(monkeypatch):
     """No death and no birth leave the pmf as it is; certain death leaves none. N_max = 40
-    objects for sure, all surviving, and a birth mean of 1e10: the only birth count that
-    fits (none) has 40! / 1e400 of the largest birth probability, below what the scaled
-    linear sums hold, so the log-domain form stands in and keeps the 40."""
+    objects for sure, all surviving, and a birth mean of 1e10: the birth pmf's entries up
+    to N_max reach 1e10^40 / 40!, past what the running product holds, so the log-domain
+    form stands in (without a warning) and keeps the 40."""
     import extended_tracker.cphd as cphd
 
     p = np.array([0.1, 0.2, 0.3, 0.4])
@@ -450,7 +485,9 @@ def test_cardinality_prediction_limits(monkeypatch):
         monkeypatch.setattr(cphd, '_predict_cardinality_log',
                             lambda *a: calls.append(a) or _predict_cardinality_log(*a))
         forty = np.log(np.eye(41)[40])
-        got = np.exp(predict_cardinality(forty, 1.0, 1e10))
+        with warnings.catch_warnings():
+            warnings.simplefilter('error')
+            got = np.exp(predict_cardinality(forty, 1.0, 1e10))
     assert len(calls) == 1
     np.testing.assert_array_equal(got, np.eye(41)[40])
 
