@@ -272,7 +272,10 @@ def log_gamma2(a):
     The same as ``scipy.special.multigammaln(a, 2)`` (a test checks it) for arrays, without
     its per-call checks.
     """
-    return 0.5 * np.log(np.pi) + gammaln(a) + gammaln(a - 0.5)
+    return _HALF_LOG_PI + gammaln(a) + gammaln(a - 0.5)
+
+
+_HALF_LOG_PI = 0.5 * np.log(np.pi)
 
 
 # --- prediction (section 2) ---
@@ -497,10 +500,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     Z = stats.scatter[cell]
     alpha = mix.alpha[comp]
     beta = mix.beta[comp]
-    if rate_scale is not None:
-        f = rate_scale[comp]
-    else:
-        f = np.ones_like(beta)
+    f = 1.0 if rate_scale is None else rate_scale[comp]
     m = mix.m[comp]
     P = mix.P[comp]
     v = mix.v[comp]
@@ -526,9 +526,9 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     if centroid_offset is not None:
         eps = eps - centroid_offset[comp]
     m_new = m + einsum('kij,kj->ki', K, eps)
-    P_new = symmetrize(P - K @ S @ K.swapaxes(1, 2))
+    P_new = symmetrize(P - K @ PHt.swapaxes(1, 2))          # K S K^T = K (P H^T)^T
 
-    u = einsum('kij,kj->ki', X_half @ S_ihalf, eps)
+    u = einsum('kij,kj->ki', X_half, einsum('kij,kj->ki', S_ihalf, eps))
     N_hat = u[:, :, None] * u[:, None, :]
     M = X_half @ Y_ihalf
     Z_hat = M @ Z @ M.swapaxes(1, 2)
@@ -544,7 +544,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
         gammaln(alpha_new) - gammaln(alpha) + alpha * np.log(beta_eff)
         - alpha_new * np.log(beta_eff + 1.0)
         # Gaussian normalisation of n points and of the centroid
-        - 0.5 * n * D * np.log(np.pi) - 0.5 * D * np.log(n)
+        - n * (2.0 * _HALF_LOG_PI) - np.log(n)                     # d = 2
         # inverse Wishart normalisers before and after
         + 0.5 * (v - D - 1) * logdet_V - 0.5 * (v_new - D - 1) * logdet_Vn
         + log_gamma2(0.5 * (v_new - D - 1)) - log_gamma2(0.5 * (v - D - 1))

@@ -188,6 +188,15 @@ def hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerCo
 def record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
     """Carry per-label report counts, scans with returns, first positions and distances
     travelled."""
+    has = est.num_detections > 0
+    if len(est) == len(old.reported) and np.logical_and.reduce(est.label == old.reported):
+        # the labels of the last report again (most scans): row for row, nothing new
+        travel = _norm(est.m[:, :2] - old.reported_origin, 1)
+        # only where returns placed it: a coasting label drifts with its predicted velocity
+        travel = np.maximum(np.where(has, travel, 0.0), old.reported_travel)
+        return evolve(new, reported=est.label.copy(), reported_scans=old.reported_scans + 1,
+                      reported_origin=old.reported_origin, reported_travel=travel,
+                      reported_size=old.reported_size, reported_hits=old.reported_hits + has)
     index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
     # each label's row in the last report (-1: reported for the first time)
     prev = np.array([index.get(lab, -1) for lab in est.label.tolist()], dtype=np.int64)
@@ -204,9 +213,9 @@ def record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filter
     d = est.m[:, :2] - origin
     travel = _norm(d, 1)
     # only where returns placed it: a coasting label drifts with its predicted velocity
-    travel[est.num_detections <= 0] = 0.0
+    travel[~has] = 0.0
     travel[again] = np.maximum(travel[again], old.reported_travel[i])
-    hits = (est.num_detections > 0).astype(np.int64)
+    hits = has.astype(np.int64)
     hits[again] += old.reported_hits[i]
     return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
                   reported_travel=travel, reported_size=size, reported_hits=hits)
@@ -328,15 +337,23 @@ def remember_shown(old: FilterState, new: FilterState, shown: Estimates,
             & ~find_sorted(shown.label, old.shown)[1])
     if len(joined):
         keep &= ~find_sorted(joined, old.shown)[1]
+    dt = new.dt
+    clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
+    clock += ((0.0, old.next_label),)
+    if not np.logical_or.reduce(keep) and np.logical_and.reduce(
+            shown.label[1:] > shown.label[:-1]):
+        # every label of the record is shown again or gone (most scans): the record is this
+        # scan's, its labels ascending already (as the estimates come)
+        return evolve(new, shown=shown.label.copy(), shown_pos=shown.m[:, :2].copy(),
+                      shown_vel=shown.m[:, 2:].copy(), shown_elapsed=np.zeros(len(shown)),
+                      label_clock=clock)
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
     elapsed = np.concatenate([elapsed[keep], np.zeros(len(shown))])
     order = label.argsort(kind='stable')
-    dt = new.dt
-    clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
     return evolve(new, shown=label[order], shown_pos=pos[order], shown_vel=vel[order],
-                  shown_elapsed=elapsed[order], label_clock=clock + ((0.0, old.next_label),))
+                  shown_elapsed=elapsed[order], label_clock=clock)
 
 
 def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):
