@@ -157,6 +157,13 @@ class Mixture:
 
     @cached_attribute
     def _by_label(self):
+        order = self.label.argsort(kind='stable')
+        lab = self.label[order]
+        if np.logical_and.reduce(lab[1:] != lab[:-1]):
+            # one component a label (a predicted or reduced mixture, most scans): each is
+            # its label's head, and the weights order nothing
+            n = len(order)
+            return read_only(order, np.ones(n, dtype=bool), np.arange(n))
         order, is_head = group_heads(self.label, -weight_key(self.w))
         return read_only(order, is_head, is_head.cumsum() - 1)
 

@@ -299,20 +299,20 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     head = heads[gid]                                  # heaviest of each member's label
     e = mix.m[order, :2] - mix.m[head, :2]
     d2 = einsum('ki,kij,kj->k', e, inv2(mix.P[heads, :2, :2])[gid], e)
-    far_group = np.zeros(n_groups, dtype=bool)
-    far_group[gid[d2 > merge_distance]] = True
+    far_group = np.bincount(gid, weights=d2 > merge_distance, minlength=n_groups) > 0
     size = np.bincount(gid, minlength=n_groups)
     # members under 1 % of the head's weight move it by less than that: their weight is
     # added to the head instead of a full moment match
-    heavy_member = ~first & (mix.w[order] >= ABSORB_RATIO * mix.w[head])
+    w_order = mix.w[order]
+    heavy_member = ~first & (w_order >= ABSORB_RATIO * mix.w[head])
     all_light = np.bincount(gid, weights=heavy_member, minlength=n_groups) == 0
     starts = first.nonzero()[0]
-    single = ~far_group & (size == 1)
-    absorb = ~far_group & (size > 1) & all_light
-    full = ~far_group & (size > 1) & ~all_light
-    singles = [order[starts[single]]]
+    near = ~far_group & (size > 1)
+    absorb = near & all_light
+    full = near & ~all_light
+    # labels kept as their head: alone, or absorbing light members (after the others)
+    kept = [heads[~far_group & (size == 1)]]
     multi = [order[starts[g]:starts[g] + size[g]] for g in full.nonzero()[0].tolist()]
-    absorbed = [order[starts[g]:starts[g] + size[g]] for g in absorb.nonzero()[0].tolist()]
     for g in far_group.nonzero()[0].tolist():
         remaining = order[starts[g]:starts[g] + size[g]]    # heaviest first
         while len(remaining):
@@ -320,15 +320,20 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
             e = mix.m[remaining, :2] - mix.m[j, :2]
             d2 = einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
             near = d2 <= merge_distance
-            (multi if near.sum() > 1 else singles).append(remaining[near])
+            (multi if near.sum() > 1 else kept).append(remaining[near])
             remaining = remaining[~near]
-    parts = [mix.take(np.concatenate(singles))]
-    if absorbed:
-        parts.append(mix.take(np.array([g[0] for g in absorbed])).with_weights(
-            np.array([np.add.reduce(mix.w[g]) for g in absorbed])))
+    absorbing = np.logical_or.reduce(absorb)
+    if absorbing:
+        kept.append(heads[absorb])
+    rows = kept[0] if len(kept) == 1 else np.concatenate(kept)
+    w = mix.w[rows]
+    if absorbing:
+        # each absorbing head takes its label's total weight
+        w[len(rows) - len(kept[-1]):] = np.add.reduceat(w_order, starts)[absorb]
+    merged = Mixture(w, mix.alpha[rows], mix.beta[rows], mix.m[rows], mix.P[rows],
+                     mix.v[rows], mix.V[rows], mix.label[rows])
     if multi:
-        parts.append(merge_groups(mix, multi))
-    merged = Mixture.concat(parts)
+        merged = Mixture.concat([merged, merge_groups(mix, multi)])
     capped = 0
     if len(merged) > max_components:
         order = (-weight_key(merged.w)).argsort(kind='stable')[:max_components]
