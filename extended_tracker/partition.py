@@ -209,8 +209,9 @@ def _merges(points: np.ndarray, d_max: float):
 
     Returns
     -------
-    a, b : (k,) int arrays
-        The smallest detection index of each of the two clusters joined.
+    a, b : lists of k ints
+        The smallest detection index of each of the two clusters joined, the smaller
+        first (``a[i] < b[i]``).
     height : (k,) array
         The merge heights (the minimum spanning forest's edge lengths).
 
@@ -225,7 +226,7 @@ def _merges(points: np.ndarray, d_max: float):
     """
     n = len(points)
     if n < 2:
-        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+        return [], [], np.zeros(0)
     if n <= LINKAGE_MAX:
         z = single_linkage(condensed_distances(points), n)
         k = int(z[:, 2].searchsorted(d_max, side='right'))
@@ -234,19 +235,24 @@ def _merges(points: np.ndarray, d_max: float):
         a, b = [0] * k, [0] * k
         for i, (u, v) in enumerate(pair):
             ru, rv = rep[u], rep[v]
-            a[i], b[i] = ru, rv
-            rep[n + i] = ru if ru < rv else rv
-        return np.array(a, dtype=np.int64), np.array(b, dtype=np.int64), z[:k, 2].copy()
+            if ru < rv:
+                a[i], b[i] = ru, rv
+                rep[n + i] = ru
+            else:
+                a[i], b[i] = rv, ru
+                rep[n + i] = rv
+        return a, b, z[:k, 2].copy()
     rows, cols, length = _mst_edges(points, d_max)
     order = np.argsort(length, kind='stable')
     parent = list(range(n))
     a, b = [], []
     for u, v in zip(rows[order].tolist(), cols[order].tolist()):
         ru, rv = find_root(parent, u), find_root(parent, v)
-        a.append(ru)
-        b.append(rv)
-        parent[max(ru, rv)] = min(ru, rv)
-    return np.array(a, dtype=np.int64), np.array(b, dtype=np.int64), length[order]
+        lo, hi = (ru, rv) if ru < rv else (rv, ru)
+        a.append(lo)
+        b.append(hi)
+        parent[hi] = lo
+    return a, b, length[order]
 
 
 def _mst_edges(points: np.ndarray, d_max: float):
@@ -320,16 +326,6 @@ def union_min(parent, a, b) -> bool:
     return True
 
 
-def _roots(parent: np.ndarray) -> np.ndarray:
-    """Root of every node of a union-find forest by pointer jumping (vectorised)."""
-    labels = parent.copy()
-    while True:
-        nxt = labels[labels]
-        if np.logical_and.reduce(nxt == labels):
-            return labels
-        labels = nxt
-
-
 def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
                         max_thresholds: int) -> tuple[list[np.ndarray], int]:
     """
@@ -366,17 +362,19 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
                                               max_thresholds)).astype(int))
         dropped = len(thresholds) - len(keep)
         thresholds = thresholds[keep]
-    # each merge joins two roots (smallest indices) under the smaller one
-    parent = np.arange(n)
-    hi, lo = np.maximum(a, b), np.minimum(a, b)
+    # each merge joins two roots (smallest indices) under the smaller one, so a parent is
+    # always below its child: one pass in index order reads every root off its parent's
+    parent = list(range(n))
     out = []
     done = 0
     for stop in length.searchsorted(thresholds, side='right').tolist():
-        if done < stop:
-            parent[hi[done:stop]] = lo[done:stop]
-            parent = _roots(parent)
-            done = stop
-        out.append(parent.copy())
+        for i in range(done, stop):
+            parent[b[i]] = a[i]
+        done = stop
+        labels = parent.copy()
+        for i in range(n):
+            labels[i] = labels[labels[i]]
+        out.append(np.array(labels, dtype=np.int64))
     return out, dropped
 
 

@@ -353,9 +353,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     sel = (w_det >= prune).nonzero()[0]
     w_birth = np.exp(out.log_w_detected[n_comp, :])
     bsel = (w_birth >= cfg.birth.min_weight).nonzero()[0]
-    born, next_label = _label_births(pset, bsel, state.next_label,
-                                     *_cell_claims(mix, comp, cell, w_det, n_cells),
-                                     w_birth)
+    # which label explains each cell best is asked only where a birth may take it
+    claims = _cell_claims(mix, comp, cell, w_det, n_cells) if len(bsel) else (None, None)
+    born, next_label = _label_births(pset, bsel, state.next_label, *claims, w_birth)
     diag.births = len(set(born.tolist()))
     # the detected pairs kept, then the births: one gather from the batched update
     rows = np.concatenate([sel if pair_rows is None else pair_rows[sel], k + bsel])
@@ -404,7 +404,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     if len(forming):
         confirmed &= ~(find_sorted(np.sort(forming), candidates.label)[1]
                        & ~find_sorted(state.shown, candidates.label)[1])
-    shown = candidates.take(confirmed)
+    shown = candidates if np.logical_and.reduce(confirmed) else candidates.take(confirmed)
     new_state = remember_shown(state, new_state, shown, cfg.extraction.handover_time, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
@@ -717,9 +717,10 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     if not group[-1]:
         return mix, 0                                  # a single label
     labels, _, weight = mix.per_label()
-    # only labels light enough to pair with the lightest other one can take part
-    two = np.partition(weight, 1)[:2]
-    cand = (weight + np.where(weight == two[0], two[1], two[0]) <= fuse_weight).nonzero()[0]
+    # only labels light enough to pair with the lightest other one can take part (the two
+    # lightest by a Python sort: a handful of labels)
+    low, second = sorted(weight.tolist())[:2]
+    cand = (weight + np.where(weight == low, second, low) <= fuse_weight).nonzero()[0]
     if len(cand) < 2:
         return mix, 0
     heads = order[is_head][cand]

@@ -660,16 +660,17 @@ def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     """
     Single linkage over all pairs and scipy's sparse MST over the radius graph's pairs, or
     over its Delaunay edges (the path past the linkage size): same forest weight and size, and each
-    merge joins two clusters under their smallest index.
+    merge joins two clusters under their smallest index, given first.
     """
     import extended_tracker.partition as P
 
     for a, b, h in (P._merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)):
         assert np.all(np.diff(h) >= 0) and np.all(h <= d_max)
+        assert len(a) == len(b) == len(h)
         parent = list(range(len(pts)))
-        for u, v in zip(a.tolist(), b.tolist()):
-            assert parent[u] == u and parent[v] == v and u != v     # both are roots
-            parent[max(u, v)] = min(u, v)
+        for u, v in zip(a, b):
+            assert parent[u] == u and parent[v] == v and u < v      # both are roots
+            parent[v] = u
     dense, sparse = P._merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)
     assert len(dense[2]) == len(sparse[2])
     # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
