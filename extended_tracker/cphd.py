@@ -236,6 +236,8 @@ def esf_terms(log_a: np.ndarray, log_b: np.ndarray | None, min_work: int = LINEA
         log_prod = np.where(np.isfinite(shifted), shifted, 0.0).sum(axis=1)
         scaled = log_prod.min(initial=0.0) >= LINEAR_FLOOR
     if not scaled:
+        if k <= 2:
+            return _esf_two(log_a, log_b)
         pre = log_esf_prefixes(log_a)
         return pre[k], None if log_b is None else leave_one_out_sums(pre, log_a, log_b)
     b = np.exp(shifted)                               # padding -> 0
@@ -258,6 +260,31 @@ def esf_terms(log_a: np.ndarray, log_b: np.ndarray | None, min_work: int = LINEA
         for j in range(k - 1, 0, -1):
             np.add(G[j + 1, :, :k], b[:, j:j + 1] * G[j + 1, :, 1:], out=G[j, :, :k])
         loo = np.log(np.add.reduce(E[:k, :, :k] * G[1:, :, :k], axis=2).T) + cm[:, None]
+    return log_e, loo
+
+
+def _esf_two(log_a: np.ndarray, log_b: np.ndarray | None):
+    """
+    :func:`esf_terms` of rows of at most two values, in closed form: ``e_1 = a_0 + a_1``,
+    ``e_2 = a_0 a_1`` and the leave-one-out sums ``b_0 + a_other b_1`` (logs). Step by
+    step the recursions of :func:`log_esf_prefixes` and :func:`leave_one_out_sums` reduce
+    to the same operations on the same values (a ``logaddexp`` with ``-inf`` returns the
+    other term exactly), so the results are theirs to the bit; most partitions of a scan
+    hold at most two active singletons, where the recursions' set-up is most of the cost.
+    """
+    p, k = log_a.shape
+    log_e = np.zeros((p, k + 1))
+    if k == 1:
+        log_e[:, 1] = log_a[:, 0]
+        loo = None if log_b is None else log_b.copy()
+    elif k == 2:
+        a0, a1 = log_a[:, 0], log_a[:, 1]
+        np.logaddexp(a0, a1, out=log_e[:, 1])
+        np.add(a0, a1, out=log_e[:, 2])
+        loo = None if log_b is None else np.logaddexp(log_b[:, :1],
+                                                      log_a[:, ::-1] + log_b[:, 1:])
+    else:
+        loo = None if log_b is None else np.zeros((p, 0))
     return log_e, loo
 
 

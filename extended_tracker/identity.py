@@ -13,6 +13,8 @@ track (:func:`join_pairs`); where and when each id was last shown is remembered
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .config import TrackerConfig
@@ -64,15 +66,27 @@ def relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Track
     if not len(old.shown) or not len(est):
         return new, est, 0
     ex = cfg.extraction
-    at, known = find_sorted(old.shown, est.label)
-    d = est.m[:, :2] - old.shown_pos[at]
-    t = old.shown_elapsed[at] + new.dt
-    jumped = known & (_norm(d, 1) > _speed_reach(ex, t))
-    if ex.max_accel > 0:
-        d -= old.shown_vel[at] * t[:, None]          # from where its velocity carried it
-        jumped |= known & (_norm(d, 1) > 0.5 * ex.max_accel * t * t + ex.jump_slack)
-    if not np.logical_or.reduce(jumped):
+    # a handful of labels: Python floats, the same operations as arrays would take
+    index = {lab: i for i, lab in enumerate(old.shown.tolist())}
+    pos, vel, ago = old.shown_pos.tolist(), old.shown_vel.tolist(), old.shown_elapsed.tolist()
+    dt = new.dt
+    jumped = []
+    for row, (lab, m) in enumerate(zip(est.label.tolist(), est.m.tolist())):
+        i = index.get(lab)
+        if i is None:
+            continue
+        t = ago[i] + dt
+        dx, dy = m[0] - pos[i][0], m[1] - pos[i][1]
+        if math.sqrt(dx * dx + dy * dy) > _speed_reach(ex, t):
+            jumped.append(row)
+        elif ex.max_accel > 0:
+            dx -= vel[i][0] * t                      # from where its velocity carried it
+            dy -= vel[i][1] * t
+            if math.sqrt(dx * dx + dy * dy) > 0.5 * ex.max_accel * t * t + ex.jump_slack:
+                jumped.append(row)
+    if not jumped:
         return new, est, 0
+    jumped = np.array(jumped, dtype=np.int64)
     bad = est.label[jumped]
     fresh = new.next_label + np.arange(len(bad))
     mix = new.mixture
@@ -331,26 +345,28 @@ def remember_shown(old: FilterState, new: FilterState, shown: Estimates,
     part of another object now, not lost (:func:`join_pairs`). Also the label counter
     of the last ``handover_time`` seconds.
     """
-    alive = new.mixture.per_label()[0]                 # ascending, cached by extract
-    elapsed = old.shown_elapsed + new.dt
-    keep = ((find_sorted(alive, old.shown)[1] | (elapsed <= handover_time))
-            & ~find_sorted(shown.label, old.shown)[1])
-    if len(joined):
-        keep &= ~find_sorted(joined, old.shown)[1]
     dt = new.dt
+    # a handful of labels: sets and lists
+    alive = set(new.mixture.per_label()[0].tolist())   # cached by extract
+    now = set(shown.label.tolist())
+    gone = set(joined.tolist())
+    keep = [i for i, (lab, ago) in enumerate(zip(old.shown.tolist(),
+                                                 old.shown_elapsed.tolist()))
+            if (lab in alive or ago + dt <= handover_time) and lab not in now
+            and lab not in gone]
     clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
     clock += ((0.0, old.next_label),)
-    if not np.logical_or.reduce(keep) and np.logical_and.reduce(
-            shown.label[1:] > shown.label[:-1]):
+    if not keep and np.logical_and.reduce(shown.label[1:] > shown.label[:-1]):
         # every label of the record is shown again or gone (most scans): the record is this
         # scan's, its labels ascending already (as the estimates come)
         return evolve(new, shown=shown.label.copy(), shown_pos=shown.m[:, :2].copy(),
                       shown_vel=shown.m[:, 2:].copy(), shown_elapsed=np.zeros(len(shown)),
                       label_clock=clock)
+    keep = np.array(keep, dtype=np.int64)
     label = np.concatenate([old.shown[keep], shown.label])
     pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
     vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
-    elapsed = np.concatenate([elapsed[keep], np.zeros(len(shown))])
+    elapsed = np.concatenate([old.shown_elapsed[keep] + dt, np.zeros(len(shown))])
     order = label.argsort(kind='stable')
     return evolve(new, shown=label[order], shown_pos=pos[order], shown_vel=vel[order],
                   shown_elapsed=elapsed[order], label_clock=clock)

@@ -79,18 +79,21 @@ def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterSt
     the uniform birth intensity that :func:`update_state` evaluates per cell.
     """
     mc = cfg.model
-    survivors = predict(state.mixture, dt, mc.p_survival, mc.sigma_accel, mc.tau_rate,
-                        mc.tau_extent)
-    regions = region_births(cfg, state.next_label)
-    next_label = state.next_label + len(regions)
+    mixture = predict(state.mixture, dt, mc.p_survival, mc.sigma_accel, mc.tau_rate,
+                      mc.tau_extent)
+    next_label = state.next_label
+    birth_mean = birth_intensity(cfg, dt)
+    if len(cfg.birth.regions):
+        regions = region_births(cfg, next_label)
+        next_label += len(regions)
+        birth_mean += float(np.add.reduce(regions.w))
+        mixture = Mixture.concat([mixture, regions])
     p_s = mc.p_survival ** dt
-    birth_mean = float(np.sum(regions.w)) + birth_intensity(cfg, dt)
     log_card = state.log_card
     if len(log_card) != mc.n_max + 1:                 # N_max changed while running
         log_card = resize_cardinality(log_card, mc.n_max)
     log_card = predict_cardinality(log_card, p_s, birth_mean)
-    return evolve(state, mixture=Mixture.concat([survivors, regions]), log_card=log_card,
-                  next_label=next_label, dt=dt)
+    return evolve(state, mixture=mixture, log_card=log_card, next_label=next_label, dt=dt)
 
 
 def birth_intensity(cfg: TrackerConfig, dt: float) -> float:
@@ -661,14 +664,21 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
     if not len(comp):
         return {}
     labels, inv, _ = mix.per_label()
-    pair_lab = inv[comp]
-    detected = np.bincount(pair_lab, weights=w_det, minlength=len(labels))
-    missed = np.bincount(inv, weights=w_missed, minlength=len(labels))
-    order, is_head = group_heads(pair_lab, -weight_key(w_det))
-    first = order[is_head]                               # each label's heaviest pair
-    ok = detected[pair_lab[first]] > missed[pair_lab[first]]
-    first = first[ok]
-    return dict(zip(labels[pair_lab[first]].tolist(), stats.n[cell[first]].tolist()))
+    # a handful of labels and pairs: Python sums, in the order bincount would add them
+    rank = inv.tolist()
+    detected, missed = [0.0] * len(labels), [0.0] * len(labels)
+    for r, w in zip(rank, w_missed.tolist()):
+        missed[r] += w
+    heaviest = {}                                      # label rank -> its heaviest pair
+    keys = weight_key(w_det).tolist()                  # ties but for the last bits: first
+    for j, (c, w) in enumerate(zip(comp.tolist(), w_det.tolist())):
+        r = rank[c]
+        detected[r] += w
+        if r not in heaviest or keys[j] > keys[heaviest[r]]:
+            heaviest[r] = j
+    lab, size, cells = labels.tolist(), stats.n.tolist(), cell.tolist()
+    return {lab[r]: size[cells[j]] for r, j in sorted(heaviest.items())
+            if detected[r] > missed[r]}
 
 
 def _spread_inv(mix: Mixture, idx) -> np.ndarray:
@@ -719,10 +729,12 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     labels, _, weight = mix.per_label()
     # only labels light enough to pair with the lightest other one can take part (the two
     # lightest by a Python sort: a handful of labels)
-    low, second = sorted(weight.tolist())[:2]
-    cand = (weight + np.where(weight == low, second, low) <= fuse_weight).nonzero()[0]
+    wl = weight.tolist()
+    low, second = sorted(wl)[:2]
+    cand = [i for i, x in enumerate(wl) if x + (second if x == low else low) <= fuse_weight]
     if len(cand) < 2:
         return mix, 0
+    cand = np.array(cand, dtype=np.int64)
     heads = order[is_head][cand]
     c = mix.m[heads, :2]
     inv_spread = _spread_inv(mix, heads)
@@ -807,30 +819,33 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     by_lab, is_head, _ = mix.by_label()
     heads = by_lab[is_head]                            # one per label, labels ascending
     labels, _, weight = mix.per_label()
-    order = (-weight_key(weight)).argsort(kind='stable')
     ex = cfg.extraction
+    # the labels heaviest first (weight_key; ties by label), a handful: a Python sort
+    keys = (-weight_key(weight)).tolist()
+    order = sorted(range(len(keys)), key=keys.__getitem__)
+    w = weight.tolist()
     if cfg.model.mode == 'cphd':
-        n_hat = int(state.log_card.argmax())
-        chosen = order[:n_hat]
+        chosen = order[:int(state.log_card.argmax())]
     else:
-        chosen = order[weight[order] > ex.phd_threshold]
-    chosen = chosen[weight[chosen] >= ex.min_existence]
-    chosen = np.sort(labels[chosen])
-    if not len(chosen):
+        chosen = [i for i in order if w[i] > ex.phd_threshold]
+    # in label order (the labels ascend)
+    chosen = sorted(i for i in chosen if w[i] >= ex.min_existence)
+    if not chosen:
         return Estimates.empty()
-    at = labels.searchsorted(chosen)
-    best, lab_w = heads[at], weight[at]
+    at = np.array(chosen, dtype=np.int64)
+    best, lab_w, chosen = heads[at], weight[at], labels[at]
     n_det = n_det or {}
     visibility = visibility or {}
+    reported = chosen.tolist()
     return Estimates(
-        label=chosen.astype(np.int64),
+        label=chosen,
         existence=np.minimum(np.maximum(lab_w, 0.0), 1.0),
         m=mix.m[best],
         P=mix.P[best],
         X=mix.expected_extent(best),
         rate=mix.expected_rate()[best],
-        num_detections=np.array([n_det.get(int(x), 0) for x in chosen], dtype=np.int64),
-        visibility=np.array([visibility.get(int(x), 1.0) for x in chosen]),
+        num_detections=np.array([n_det.get(x, 0) for x in reported], dtype=np.int64),
+        visibility=np.array([visibility.get(x, 1.0) for x in reported]),
     )
 
 

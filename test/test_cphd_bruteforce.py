@@ -455,6 +455,28 @@ def test_scaled_esf_terms_match_the_log_domain_recursions():
         assert none is None and np.array_equal(e_only, log_e)
 
 
+@pytest.mark.parametrize('k', [0, 1, 2])
+def test_esf_terms_of_rows_of_up_to_two_are_the_recursions_to_the_bit(k):
+    """Rows of at most two values (most partitions' active singletons) take closed forms:
+    the same values, bit for bit, as the log-domain recursions, -inf padding included, with
+    and without coefficients."""
+    from extended_tracker.cphd import esf_terms, leave_one_out_sums, log_esf_prefixes
+
+    rng = np.random.default_rng(k)
+    for trial in range(300):
+        p = int(rng.integers(1, 6))
+        log_a = rng.normal(0.0, 50.0, (p, k))
+        log_b = rng.normal(0.0, 50.0, (p, k))
+        log_a[rng.random((p, k)) < 0.3] = -np.inf
+        log_b[rng.random((p, k)) < 0.2] = -np.inf
+        pre = log_esf_prefixes(log_a)
+        log_e, loo = esf_terms(log_a, log_b)
+        assert np.array_equal(log_e, pre[k])
+        assert np.array_equal(loo, leave_one_out_sums(pre, log_a, log_b))
+        e_only, none = esf_terms(log_a, None)
+        assert none is None and np.array_equal(e_only, pre[k])
+
+
 def test_esf_terms_keep_the_log_domain_for_extreme_spreads():
     """A row whose values span hundreds of orders of magnitude (their scaled product
     below the floor) sends the batch to the log-domain recursions, values unchanged; so
