@@ -310,18 +310,18 @@ def _sum_tables(T: np.ndarray, W1: np.ndarray, pad: int) -> np.ndarray:
     return out
 
 
-def _partition_terms(pid, flat, single, act, la, k1, k2, ka, log_A, feasible, Z, pc_pad,
-                     pad: int):
+def _partition_terms(parts: list, Z: np.ndarray, pc_pad: np.ndarray, pad: int):
     """
     ``Lambda_P(n)``, the ``Upsilon_0`` term and the per-cell ``Upsilon`` terms of a batch
     of partitions, all at once.
 
-    ``pid``, ``flat``, ``single``, ``act`` (active singleton) and ``la`` describe the
-    batch's (partition, cell) rows, grouped by partition in order (``pid`` local to the
-    batch); the other arrays are per partition. ``Z`` is :func:`_sum_tables` and
-    ``pc_pad`` the table ``(k-j)! p_c(k-j)``, both padded by ``pad`` (more than any
-    partition's active singletons). Returns ``lam (p, N_max + 1)``, ``u0 (p,)`` and
-    ``(cells, values)`` to add into the cells' log-Upsilon.
+    ``parts`` holds one tuple a partition (:func:`_partition_rows`): ``k1``, ``k2``,
+    ``log A_P``, the log-values and cells of its active singletons, and its non-singleton
+    cells with their ``log a_W``. ``Z`` is :func:`_sum_tables` and ``pc_pad`` the table
+    ``(k-j)! p_c(k-j)``, both padded by ``pad`` (more than any partition's active
+    singletons). Returns ``lam (p, N_max + 1)``, ``u0 (p,)`` and ``(cells, values)`` to
+    add into the cells' log-Upsilon, the non-singleton cells first, each group in the
+    partitions' order.
 
     Notes
     -----
@@ -330,14 +330,16 @@ def _partition_terms(pid, flat, single, act, la, k1, k2, ka, log_A, feasible, Z,
     ``T[n]``, ``Upsilon_0`` reads ``W1`` and a non-singleton cell's term ``W1`` one column
     left (one non-singleton fewer), so the three are one gather and one log-sum.
     """
-    n_part = len(k1)
-    R = int(ka.max()) if n_part else 0
-    # The active singletons (those some object may have produced) of each feasible
-    # partition, packed into rows padded with -inf.
-    slot = act.cumsum() - 1 - (ka.cumsum() - ka)[pid]
-    pa, sa = pid[act], slot[act]
-    S = neg_inf((n_part, R))
-    S[pa, sa] = la[act]
+    n_part = len(parts)
+    k1 = np.array([q[0] for q in parts], dtype=np.int64)
+    k2 = np.array([q[1] for q in parts], dtype=np.int64)
+    log_A = np.array([q[2] for q in parts])
+    feasible = log_A > NEG_INF
+    ka = [len(q[3]) for q in parts]
+    R = max(ka, default=0)
+    # the active singletons of each partition (a feasible one's, from which some object may
+    # have come) packed into rows padded with -inf
+    S = np.array([q[3] + [NEG_INF] * (R - len(q[3])) for q in parts]).reshape(n_part, R)
     r = np.arange(R + 1)
     G = Z[:, pad + k2[:, None] + r]                     # (N_max + 3, p, R + 1)
     pcg = pc_pad[pad + k1[:, None] - r]                 # (k1 - r)! p_c(k1 - r)
@@ -346,27 +348,75 @@ def _partition_terms(pid, flat, single, act, la, k1, k2, ka, log_A, feasible, Z,
         # coefficients of the leave-one-out sums (W an active singleton, below):
         # W1[k2 + r] (k1 - 1 - r)! p_c(k1 - 1 - r) for r < ka
         B = G[-2, :, :R] + pcg[:, 1:]
-        B[r[:R] >= ka[:, None]] = NEG_INF
+        B[r[:R] >= np.array(ka)[:, None]] = NEG_INF
     log_e, loo = esf_terms(S, B)                        # e_r(a_S), leave-one-out sums
     pc_r = pcg + log_e
     pc_r[~feasible] = NEG_INF
     sums = lse_last(G + pc_r)                           # (N_max + 3, p)
     lam = log_A[:, None] + sums[:-2].T
     u0 = log_A + sums[-2]
-    cells, vals = [], []
-    # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer
-    rows = feasible[pid] & ~single
-    if np.logical_or.reduce(rows):
-        pr = pid[rows]
-        cells.append(flat[rows])
-        vals.append(log_A[pr] - la[rows] + sums[-1][pr])
+    # W non-singleton: Lambda of P without W is A_P / a_W with one non-singleton fewer;
     # W an active singleton: one singleton fewer, e_r of the others (leave one out)
-    if R:
-        cells.append(flat[act])
-        vals.append(log_A[pa] + loo[pa, sa])
-    if not cells:
+    ns_part, ns_cell, ns_la, act_part, act_slot, act_cell = [], [], [], [], [], []
+    for i, (_, _, a, act_la, act_cells, cells, la) in enumerate(parts):
+        if a > NEG_INF:
+            ns_part += [i] * len(cells)
+            ns_cell += cells
+            ns_la += la
+        act_part += [i] * len(act_cells)
+        act_slot += range(len(act_cells))
+        act_cell += act_cells
+    vals = []
+    if ns_cell:
+        pr = np.array(ns_part, dtype=np.int64)
+        vals.append(log_A[pr] - np.array(ns_la) + sums[-1][pr])
+    if act_cell:
+        pa = np.array(act_part, dtype=np.int64)
+        vals.append(log_A[pa] + loo[pa, np.array(act_slot, dtype=np.int64)])
+    if not vals:
         return lam, u0, np.zeros(0, dtype=np.int64), np.zeros(0)
-    return lam, u0, np.concatenate(cells), np.concatenate(vals)
+    cells = np.array(ns_cell + act_cell, dtype=np.int64)
+    return lam, u0, cells, vals[0] if len(vals) == 1 else np.concatenate(vals)
+
+
+def _partition_rows(partitions, log_a, cell_size, clutter_cells):
+    """
+    Each partition's counts and cells for :func:`_partition_terms`, in Python (a scan has a
+    few partitions of a few cells): ``(k1, k2, log A_P, active log a_W, active cells,
+    non-singleton cells, their log a_W)``.
+
+    ``k1`` counts singletons (a clutter cell as its detections), ``k2`` the other cells;
+    ``A_P`` is the product of the non-singletons' ``a_W``, summed in cell order from 0
+    (``-inf`` makes the partition infeasible: its singletons count as inactive); an active
+    singleton is one some object may have produced (``a_W`` finite).
+    """
+    la_all, size_all = log_a.tolist(), cell_size.tolist()
+    clutter = clutter_cells.tolist() if clutter_cells is not None else None
+    out = []
+    for part in partitions:
+        k1 = k2 = 0
+        log_A = 0.0
+        act_la, act_cells, cells, las = [], [], [], []
+        for c in np.asarray(part).tolist():
+            if clutter is not None and clutter[c]:
+                # a clutter cell is its detections as singletons no component explains
+                k1 += size_all[c]
+            elif size_all[c] == 1:
+                k1 += 1
+                if la_all[c] > NEG_INF:
+                    act_la.append(la_all[c])
+                    act_cells.append(c)
+            else:
+                k2 += 1
+                log_A += la_all[c]
+                cells.append(c)
+                las.append(la_all[c])
+        if log_A == NEG_INF:
+            # a non-singleton cell no object explains makes the partition impossible
+            # (clutter is singletons only): it contributes nothing
+            act_la, act_cells = [], []
+        out.append((k1, k2, log_A, act_la, act_cells, cells, las))
+    return out
 
 
 def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_card,
@@ -431,26 +481,9 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         log_psi = sums[2:] - log_nbar
     # log a_W = log(psi_W / c^W)
     log_a = log_psi - cell_log_c
-    # flatten: one row per (partition, cell)
-    sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=n_part)
-    flat = np.concatenate(partitions).astype(np.int64, copy=False)
-    pid = np.repeat(np.arange(n_part), sizes)
-    single = cell_size[flat] == 1
-    la = log_a[flat]
-    k1 = np.bincount(pid, weights=single, minlength=n_part).astype(np.int64)
-    k2 = sizes - k1
-    if clutter_cells is not None:
-        # a clutter cell is its detections as singletons that no component explains
-        # (a_W = -inf: inactive, clutter only): they count in k1, not as a cell in k2,
-        # and put no a_W into A_P
-        cc = clutter_cells[flat]
-        k2 -= np.bincount(pid, weights=cc, minlength=n_part).astype(np.int64)
-        k1 = k1 + np.bincount(pid, weights=np.where(cc, cell_size[flat], 0),
-                              minlength=n_part).astype(np.int64)
-        la = np.where(cc, NEG_INF, la)
-        single = single | cc
+    parts = _partition_rows(partitions, log_a, cell_size, clutter_cells)
     # the most cells of a partition, a clutter cell counted as its detections
-    k_most = int((sizes if clutter_cells is None else k1 + k2).max())
+    k_most = max(q[0] + q[1] for q in parts)
     T = _log_lambda_table(log_q0, n_max, k_most)
     lf = _log_factorial(k_most + 1)
     need = k_most + 1
@@ -464,15 +497,8 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
     W1 = lse_last((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
     log_u_cell = neg_inf(n_cells)
-    singles_active = single & np.isfinite(la)
-    n_active = np.bincount(pid, weights=singles_active, minlength=n_part).astype(np.int64)
-    log_A = np.bincount(pid, weights=np.where(single, 0.0, la), minlength=n_part)
-    # A non-singleton cell no object explains makes the partition impossible (clutter
-    # is singletons only): it contributes nothing.
-    feasible = np.isfinite(log_A)
-    ka = np.where(feasible, n_active, 0)
-    act = singles_active & feasible[pid]
-    R = int(ka.max())
+    ka = [len(q[3]) for q in parts]
+    R = max(ka)
     pad = R + 1
     Z = _sum_tables(T, W1, pad)
     pc_pad = _inf_padded(log_pc_fact, pad)
@@ -482,18 +508,16 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     if n_part >= BATCH_MIN_PARTITIONS and R >= BATCH_MIN_SINGLETONS:
         lam_P = neg_inf((n_part, n_max + 1))
         u0_terms = neg_inf(n_part)
+        ka = np.array(ka)
         bucket = np.quantile(ka, [1 / 3, 2 / 3]).searchsorted(ka, side='left')
         for b in np.unique(bucket).tolist():
             sel = (bucket == b).nonzero()[0]
-            rows = bucket[pid] == b
             lam_P[sel], u0_terms[sel], cells, vals = _partition_terms(
-                sel.searchsorted(pid[rows]), flat[rows], single[rows], act[rows], la[rows],
-                k1[sel], k2[sel], ka[sel], log_A[sel], feasible[sel], Z, pc_pad, pad)
+                [parts[i] for i in sel.tolist()], Z, pc_pad, pad)
             np.logaddexp.at(log_u_cell, cells, vals)
     else:
         # one batch: every partition, no selection to make
-        lam_P, u0_terms, cells, vals = _partition_terms(
-            pid, flat, single, act, la, k1, k2, ka, log_A, feasible, Z, pc_pad, pad)
+        lam_P, u0_terms, cells, vals = _partition_terms(parts, Z, pc_pad, pad)
         np.logaddexp.at(log_u_cell, cells, vals)
 
     per_partition = lse_last(lam_P + log_card[None, :])

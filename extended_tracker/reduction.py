@@ -299,37 +299,54 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     head = heads[gid]                                  # heaviest of each member's label
     e = mix.m[order, :2] - mix.m[head, :2]
     d2 = einsum('ki,kij,kj->k', e, inv2(mix.P[heads, :2, :2])[gid], e)
-    far_group = np.bincount(gid, weights=d2 > merge_distance, minlength=n_groups) > 0
-    size = np.bincount(gid, minlength=n_groups)
-    # members under 1 % of the head's weight move it by less than that: their weight is
-    # added to the head instead of a full moment match
-    w_order = mix.w[order]
-    heavy_member = ~first & (w_order >= ABSORB_RATIO * mix.w[head])
-    all_light = np.bincount(gid, weights=heavy_member, minlength=n_groups) == 0
-    starts = first.nonzero()[0]
-    near = ~far_group & (size > 1)
-    absorb = near & all_light
-    full = near & ~all_light
-    # labels kept as their head: alone, or absorbing light members (after the others)
-    kept = [heads[~far_group & (size == 1)]]
-    multi = [order[starts[g]:starts[g] + size[g]] for g in full.nonzero()[0].tolist()]
-    for g in far_group.nonzero()[0].tolist():
-        remaining = order[starts[g]:starts[g] + size[g]]    # heaviest first
+    # per label, a handful of them: its members (heaviest first), whether one lies beyond
+    # the merge distance, and whether one has 1 % of the head's weight or more (lighter
+    # members move it by less than that: their weight is added to the head instead of a
+    # full moment match)
+    members = [[] for _ in range(n_groups)]
+    far_group = [False] * n_groups
+    heavy = [False] * n_groups
+    w_order = mix.w[order].tolist()
+    head_w = 0.0
+    for i, (g, o, far, w) in enumerate(zip(gid.tolist(), order.tolist(),
+                                          (d2 > merge_distance).tolist(), w_order)):
+        if not members[g]:
+            head_w = w
+        elif w >= ABSORB_RATIO * head_w:
+            heavy[g] = True
+        members[g].append(o)
+        far_group[g] = far_group[g] or far
+    kept, multi, absorbed, absorbed_w = [], [], [], []
+    for g, group in enumerate(members):
+        if far_group[g]:
+            continue
+        if len(group) == 1:
+            kept.append(group[0])
+        elif heavy[g]:
+            multi.append(np.array(group, dtype=np.int64))
+        else:
+            absorbed.append(group[0])
+            total = mix.w[group[0]]
+            for o in group[1:]:                        # in order, as reduceat adds
+                total += mix.w[o]
+            absorbed_w.append(total)
+    for g in (g for g, far in enumerate(far_group) if far):
+        remaining = np.array(members[g], dtype=np.int64)    # heaviest first
         while len(remaining):
             j = remaining[0]
             e = mix.m[remaining, :2] - mix.m[j, :2]
             d2 = einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
             near = d2 <= merge_distance
-            (multi if near.sum() > 1 else kept).append(remaining[near])
+            if near.sum() > 1:
+                multi.append(remaining[near])
+            else:
+                kept.extend(remaining[near].tolist())
             remaining = remaining[~near]
-    absorbing = np.logical_or.reduce(absorb)
-    if absorbing:
-        kept.append(heads[absorb])
-    rows = kept[0] if len(kept) == 1 else np.concatenate(kept)
+    # labels kept as their head: alone, or absorbing light members (after the others)
+    rows = np.array(kept + absorbed, dtype=np.int64)
     w = mix.w[rows]
-    if absorbing:
-        # each absorbing head takes its label's total weight
-        w[len(rows) - len(kept[-1]):] = np.add.reduceat(w_order, starts)[absorb]
+    if absorbed:
+        w[len(kept):] = absorbed_w
     merged = Mixture(w, mix.alpha[rows], mix.beta[rows], mix.m[rows], mix.P[rows],
                      mix.v[rows], mix.V[rows], mix.label[rows])
     if multi:
