@@ -180,10 +180,11 @@ class ScanPoints:
         (some 360 degree drivers do) has the beam of bearing -pi/2 at 3 pi/2. Unchanged,
         bit for bit, where no turn is needed.
         """
-        turns = np.round((0.5 * (self.angle_lo + self.angle_hi) - bearing) / (2 * math.pi))
-        if not np.logical_or.reduce(turns != 0, axis=None):
+        x = (0.5 * (self.angle_lo + self.angle_hi) - bearing) / (2 * math.pi)
+        # no turn rounds to anything but 0 (halves round to even, so |x| <= 1/2 is none)
+        if np.maximum.reduce(np.abs(x), axis=None, initial=0.0) <= 0.5:
             return bearing
-        return bearing + (2 * math.pi) * turns
+        return bearing + (2 * math.pi) * np.round(x)
 
 
 def _median(x: np.ndarray) -> float:

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..ggiw import einsum, inv2, Mixture, quad_form2
+from ..ggiw import einsum, Mixture
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
@@ -183,29 +183,46 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     frac_visible = 1.0 - blocked_n / width
     # part of the interval outside the field of view is not seen at all: the lengths cut
     # off each end are exactly 0 where the field of view holds it
+    cut_lo = cut_hi = 0.0
     if full:
         visible = frac_visible
-        cut_lo = cut_hi = 0.0
     else:
         step = max(step, 1e-9)
         start, end = bearing - half_angle, bearing + half_angle
         fov_lo, fov_hi = scan.angle_lo - step / 2, scan.angle_hi + step / 2
-        cut_lo = np.maximum(np.minimum(fov_lo, end) - start, 0.0)
-        cut_hi = np.maximum(end - np.maximum(fov_hi, start), 0.0)
-        span = 2 * half_angle
-        in_fov = np.where(span > 0, np.minimum(np.maximum(
-            1.0 - (cut_lo + cut_hi) / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
-        # wherever the centre is: an object leaving across the edge is seen in part until
-        # it has gone (with p_D 0 once its centre crossed, no scan refuted the moving
-        # track, and a restart at rest on the part still in view took its label); an
-        # interval wholly outside reads exactly 0, not the rounding residue of 1 - cut/span
-        visible = np.where((end < fov_lo) | (start > fov_hi), 0.0, frac_visible * in_fov)
+        if (np.minimum.reduce(start, initial=np.inf) >= fov_lo
+                and np.maximum.reduce(end, initial=-np.inf) <= fov_hi):
+            # every interval within the field of view (most scans): nothing cut off, the
+            # lengths below would be exactly 0 and the factor exactly 1
+            visible = frac_visible
+        else:
+            cut_lo, cut_hi, visible = _fov_cut(start, end, fov_lo, fov_hi, half_angle,
+                                               frac_visible)
     if not with_shift:
         return visible, None
     shift = np.where(visible > 0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
     if shift_rows is not None:
         shift[shift_rows:] = 0.0
     return visible, shift
+
+
+def _fov_cut(start, end, fov_lo, fov_hi, half_angle, frac_visible):
+    """
+    The angles cut off each end of the intervals ``[start, end]`` by the field of view
+    ``[fov_lo, fov_hi]`` (exactly 0 where it holds them) and the visible fraction
+    ``frac_visible`` of the beams times the part in view.
+    """
+    cut_lo = np.maximum(np.minimum(fov_lo, end) - start, 0.0)
+    cut_hi = np.maximum(end - np.maximum(fov_hi, start), 0.0)
+    span = 2 * half_angle
+    in_fov = np.where(span > 0, np.minimum(np.maximum(
+        1.0 - (cut_lo + cut_hi) / np.maximum(span, 1e-12), 0.0), 1.0), 1.0)
+    # wherever the centre is: an object leaving across the edge is seen in part until
+    # it has gone (with p_D 0 once its centre crossed, no scan refuted the moving
+    # track, and a restart at rest on the part still in view took its label); an
+    # interval wholly outside reads exactly 0, not the rounding residue of 1 - cut/span
+    visible = np.where((end < fov_lo) | (start > fov_hi), 0.0, frac_visible * in_fov)
+    return cut_lo, cut_hi, visible
 
 
 def _width_classes(width: np.ndarray, clear: np.ndarray) -> list:
@@ -289,7 +306,11 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
 def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
     """Whether the sensor (the origin) lies within each outline, the ellipse of the
     expected extent ``extent`` about the centre ``m[:, :2]``."""
-    return quad_form2(m[:, :2], inv2(extent)) < 1.0
+    a, b, c, d = extent[:, 0, 0], extent[:, 0, 1], extent[:, 1, 0], extent[:, 1, 1]
+    det = a * d - b * c
+    x, y = m[:, 0], m[:, 1]
+    # quad_form2 of inv2(extent): the same operations on the three entries it reads
+    return (d / det) * x ** 2 + 2 * (-b / det) * x * y + (a / det) * y ** 2 < 1.0
 
 
 # visible fraction of its own extent from which the scan shows an object's returns (all
