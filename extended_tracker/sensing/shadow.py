@@ -152,34 +152,42 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # count is the width and their free beams are all their beams. Worth it when the
     # intervals hold more beams than the range-minimum table costs (B log2 B).
     if np.add.reduce(width) > len(ang) * math.log2(max(len(ang), 2)):
-        clear = _range_min(rng, lo, hi) >= thr
+        classes = _width_classes(width, _range_min(rng, lo, hi) >= thr)
+    elif width.max() <= GATHER_WIDTH:
+        classes = [None]                   # the usual case: every interval in one gather
     else:
-        clear = np.zeros(k, dtype=bool)
+        classes = _width_classes(width, np.zeros(k, dtype=bool))
     if with_shift:
         free_turn = np.zeros(k)            # mean free angle less the mean of all, per row
     # the others: one padded gather per class of widths (up to 64 beams, then doubling),
     # so the work stays within twice their total width and the calls are a handful
-    for ni in _width_classes(width, clear):
-        w_max = int(width[ni].max())
-        idx = lo[ni, None] + np.arange(w_max)[None, :]
-        inside = idx < hi[ni, None]
+    for ni in classes:
+        if ni is None:
+            lo_i, hi_i, thr_i, width_i = lo, hi, thr, width
+        else:
+            lo_i, hi_i, thr_i, width_i = lo[ni], hi[ni], thr[ni], width[ni]
+        idx = lo_i[:, None] + np.arange(int(width_i.max()))[None, :]
+        inside = idx < hi_i[:, None]
         idx = np.minimum(idx, len(ang) - 1)
-        blocked = (rng[idx] < thr[ni, None]) & inside
+        blocked = (rng[idx] < thr_i[:, None]) & inside
         n_blocked = blocked.sum(axis=1)
-        blocked_n[ni] = n_blocked
+        blocked_n[slice(None) if ni is None else ni] = n_blocked
         if with_shift:
             # only partly blocked intervals turn (the others stay exactly 0), and only
             # those whose shift is asked for
-            n_free = width[ni] - n_blocked
+            n_free = width_i - n_blocked
             part = (n_blocked > 0) & (n_free > 0)
             if shift_rows is not None:
-                part &= ni < shift_rows
+                if ni is None:
+                    part[shift_rows:] = False
+                else:
+                    part &= ni < shift_rows
             rows = part.nonzero()[0]
             if len(rows):
                 a = np.where(inside[rows], ang[idx[rows]], 0.0)
                 free_sum = np.where(blocked[rows], 0.0, a).sum(axis=1)
-                free_turn[ni[rows]] = (free_sum / n_free[rows]
-                                       - a.sum(axis=1) / width[ni[rows]])
+                free_turn[rows if ni is None else ni[rows]] = (
+                    free_sum / n_free[rows] - a.sum(axis=1) / width_i[rows])
     frac_visible = 1.0 - blocked_n / width
     # part of the interval outside the field of view is not seen at all: the lengths cut
     # off each end are exactly 0 where the field of view holds it
