@@ -20,7 +20,9 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import gammaln
 
-from .memo import cached_attribute, cached_tables, evolve, read_only
+from .memo import (
+    cached_attribute, cached_tables, constants, evolve, HALF, ONE, QUARTER, read_only, TWO,
+)
 
 try:
     # numpy's C einsum: np.einsum wraps it in Python only to offer ``optimize``, which
@@ -32,13 +34,8 @@ except ImportError:                      # pragma: no cover - other numpy releas
 D = 2                     # extent dimension
 IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
 
-# The constants of the hot array expressions as 0-d float64 arrays: numpy 2 resolves a
-# Python scalar operand's type on every call, which costs about as much again as the
-# arithmetic on arrays of a few dozen elements (a * 0.5 took 850 ns where a * HALF takes
-# 470); the same doubles come out.
-HALF, ONE, TWO, QUARTER = (np.array(x) for x in (0.5, 1.0, 2.0, 0.25))
-_IW = np.array(float(IW_OFFSET))
-_D1 = np.array(float(D + 1))          # v - d - 1 (exact: v > 2d + 2)
+# the IW offsets as array constants (memo.constants): v - d - 1 is exact for v > 2d + 2
+_IW, _D1 = constants(IW_OFFSET, D + 1)
 
 
 @dataclass(frozen=True)

@@ -19,6 +19,7 @@ from scipy.special import digamma, zeta
 from .ggiw import (
     D, eig2, einsum, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize, weight_key,
 )
+from .memo import constants, HALF, ONE, TWO, ZERO
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -28,7 +29,7 @@ MIN_SEMI_AXIS = 0.01     # m: merged extents keep at least this semi-axis (see _
 def _trigamma(x):
     """``polygamma(1, x)``, called as the Hurwitz zeta ``zeta(2, x)`` it evaluates (the same
     values, without polygamma's Python wrapper, which also evaluates digamma)."""
-    return zeta(2.0, x)
+    return zeta(TWO, x)
 
 
 _TINY = np.finfo(float).tiny
@@ -41,8 +42,8 @@ def _gamma_shape_start(c):
     the equal ``2 / (r + c - 3)``: there ``3 - c + r`` cancels (to 0 once ``c`` passes
     some 1e16, as for a rate whose shape forgetting drove towards 0).
     """
-    r = np.sqrt((c - 3) ** 2 + 24 * c)
-    return np.where(c < 3, (3 - c + r) / (12 * c), 2.0 / (r + c - 3))
+    r = np.sqrt((c - _3) ** 2 + _24 * c)
+    return np.where(c < _3, (_3 - c + r) / (_12 * c), TWO / (r + c - _3))
 
 
 def merge_gamma(w, alpha, beta):
@@ -79,6 +80,12 @@ def merge_gamma(w, alpha, beta):
 # 4 psi_1(nu - 1) (one evaluation each instead of two and a sum)
 assert D == 2
 _LOG4 = 2.0 * np.log(2.0)
+# constants of the solves' array expressions (memo.constants)
+_3, _12, _24, _LOG4_A, _RTOL, _GUESS_SHIFT, _GAMMA_C_MIN = constants(
+    3, 12, 24, _LOG4, 1e-10, 0.75, 1e-12)
+_IW, _NU_BASE, _MIN_SEMI_AXIS2, _RATIO, _TINY_DIFF, _NU_MIN = constants(
+    IW_OFFSET, IW_OFFSET - D - 1, MIN_SEMI_AXIS ** 2, MEAN_EXTENT_RATIO, 1e-300,
+    IW_OFFSET - D - 1 + 1e-9)
 
 
 def _solve_nu(target, lo, hi, start, iters=60):
@@ -103,32 +110,32 @@ def _solve_nu(target, lo, hi, start, iters=60):
     k = len(target)
 
     def f(nu, t):
-        x = nu - 1.0
-        return 2.0 * (np.log(nu) - digamma(x)) + (_LOG4 - t), x
+        x = nu - ONE
+        return TWO * (np.log(nu) - digamma(x)) + (_LOG4_A - t), x
 
     ends, _ = f(np.concatenate([lo, hi]), np.concatenate([target, target]))
-    below, above_hi = ends[:k] <= 0, ends[k:] >= 0
+    below, above_hi = ends[:k] <= ZERO, ends[k:] >= ZERO
     out = np.where(below, lo, np.where(above_hi, hi, 0.0))
     free = ~(below | above_hi)
     if not np.logical_or.reduce(free):
         return out
     t, a, b = target[free], lo[free], hi[free]
-    excess = t - _LOG4
+    excess = t - _LOG4_A
     with np.errstate(divide='ignore', invalid='ignore'):
-        guess = 3.0 / excess + 0.75
-    nu = np.minimum(np.maximum(np.where(excess > 0, guess, start[free]), a), b)
+        guess = _3 / excess + _GUESS_SHIFT
+    nu = np.minimum(np.maximum(np.where(excess > ZERO, guess, start[free]), a), b)
     with np.errstate(divide='ignore', invalid='ignore'):        # fp = 0: bisection below
         for _ in range(iters):
             val, x = f(nu, t)
-            above = val > 0                                # the root is above nu
+            above = val > ZERO                             # the root is above nu
             a = np.where(above, nu, a)
             b = np.where(above, b, nu)
-            fp = 2.0 / nu - 2.0 * _trigamma(x)
-            nxt = nu / (1.0 + val / (nu * fp))                   # u - g(u) / g'(u)
+            fp = TWO / nu - TWO * _trigamma(x)
+            nxt = nu / (ONE + val / (nu * fp))                   # u - g(u) / g'(u)
             # inclusive: at the root (val == 0) the step stays on an end of the bracket,
             # and bisecting from there wanders off the root for a dozen steps
-            nxt = np.where((nxt >= a) & (nxt <= b), nxt, 0.5 * (a + b))
-            done = (np.abs(nxt - nu) <= 1e-10 * nu).all()
+            nxt = np.where((nxt >= a) & (nxt <= b), nxt, HALF * (a + b))
+            done = (np.abs(nxt - nu) <= _RTOL * nu).all()
             nu = nxt
             if done:
                 break
@@ -149,22 +156,22 @@ def _floor_extent(V, v):
     ran away. One centimetre is below the sensor noise, so the floor changes nothing
     measurable.
     """
-    s = v - IW_OFFSET
+    s = v - _IW
     _, minor2 = eig2(V / s[:, None, None])
-    lift = np.maximum(MIN_SEMI_AXIS ** 2 - minor2, 0.0)
+    lift = np.maximum(_MIN_SEMI_AXIS2 - minor2, ZERO)
     return V + (s * lift)[:, None, None] * np.eye(D)
 
 
 def _nu_floor(mean_trace, t):
     """Smallest ``nu`` whose ``tr E[X] = nu t / (nu - d - 1)`` is within the ratio."""
-    c = MEAN_EXTENT_RATIO * mean_trace
-    base = IW_OFFSET - D - 1                   # nu = d + 1 is v = 2d + 2
-    return np.maximum(base * c / np.maximum(c - t, 1e-300), base + 1e-9)
+    c = _RATIO * mean_trace
+    base = _NU_BASE                            # nu = d + 1 is v = 2d + 2
+    return np.maximum(base * c / np.maximum(c - t, _TINY_DIFF), _NU_MIN)
 
 
 def _iw_psi_sum(nu):
     """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` for scalar or (k,) ``nu`` (d = 2)."""
-    return 2.0 * digamma(np.asarray(nu, dtype=float) - 1.0) - _LOG4
+    return TWO * digamma(np.asarray(nu, dtype=float) - ONE) - _LOG4_A
 
 
 def merge_iw(w, v, V):
@@ -231,18 +238,18 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     al, be = mix.alpha[idx], mix.beta[idx]
     mean = np.add.reduceat(wn * al / be, starts)
     elog = np.add.reduceat(wn * (digamma(al) - np.log(be)), starts)
-    c = np.maximum(np.log(mean) - elog, 1e-12)
+    c = np.maximum(np.log(mean) - elog, _GAMMA_C_MIN)
     a = _gamma_shape_start(c)
     for _ in range(20):
-        step = (np.log(a) - digamma(a) - c) / (1 / a - _trigamma(a))
+        step = (np.log(a) - digamma(a) - c) / (ONE / a - _trigamma(a))
         new = a - step
-        a = np.where(new > 0, new, a / 2)
-        if (np.abs(step) <= 1e-10 * a).all():
+        a = np.where(new > ZERO, new, a * HALF)
+        if (np.abs(step) <= _RTOL * a).all():
             break
     b = a / mean
     # inverse Wishart
     V_i = mix.V[idx]
-    nu_i = mix.v[idx] - D - 1
+    nu_i = mix.v[idx] - _3                # v - d - 1, exact: v > 6
     wnu = wn * nu_i
     Psi = np.add.reduceat(wnu[:, None, None] * inv2(V_i), starts)
     elog_x = np.add.reduceat(wn * (logdet_spd2(V_i) - _iw_psi_sum(nu_i)), starts)
@@ -252,11 +259,11 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     lo = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
     nu = _solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
                    np.add.reduceat(wnu, starts))
-    V = _floor_extent(nu[:, None, None] * iPsi, nu + D + 1)
+    V = _floor_extent(nu[:, None, None] * iPsi, nu + TWO + ONE)
     # label of the heaviest member
     first = np.lexsort((-weight_key(w), gid))[starts]
     label = mix.label[idx[first]]
-    return Mixture(W, a, b, m, symmetrize(P), nu + D + 1, symmetrize(V), label)
+    return Mixture(W, a, b, m, symmetrize(P), nu + TWO + ONE, symmetrize(V), label)
 
 
 def merge_components(mix: Mixture, idx: np.ndarray):
