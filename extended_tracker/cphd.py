@@ -478,7 +478,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         log_psi = neg_inf(n_cells)
     else:
         log_q0 = float(sums[1]) - log_nbar
-        log_psi = sums[2:] - log_nbar
+        log_psi = sums[2:] - sums[0, ...]      # log_nbar, as a 0-d operand
     # log a_W = log(psi_W / c^W)
     log_a = log_psi - cell_log_c
     parts = _partition_rows(partitions, log_a, cell_size, clutter_cells)
@@ -521,13 +521,15 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         np.logaddexp.at(log_u_cell, cells, vals)
 
     per_partition = lse_last(lam_P + log_card[None, :])
-    log_L = lse1(per_partition)
+    log_L_a = np.logaddexp.reduce(per_partition, initial=NEG_INF, keepdims=True)
+    log_L = float(log_L_a[0])
     if log_L == NEG_INF:
         return _prediction_stands(log_w, n_cells, log_card, n_part)
-    log_part_weight = per_partition - log_L
+    log_L_a.shape = ()                          # a 0-d operand (memo.constants)
+    log_part_weight = per_partition - log_L_a
     log_u0 = lse1(u0_terms) - log_nbar - log_L
-    log_u_cell = log_u_cell - log_nbar - log_L
-    log_card_post = log_card + lse_last(lam_P.T) - log_L
+    log_u_cell = log_u_cell - np.array(log_nbar) - log_L_a
+    log_card_post = log_card + lse_last(lam_P.T) - log_L_a
 
     log_w_missed = log_w + log_qd + log_u0
     log_w_det = log_w[:, None] + log_g - cell_log_c[None, :] + log_u_cell[None, :]

@@ -15,7 +15,6 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 from scipy.special import gammaln
@@ -324,10 +323,11 @@ def cv_matrices(dt: float, sigma_accel: float):
 FORGET_FLOOR = 1e-9      # least Gamma shape, and IW v - 6, that forgetting leaves
 
 
-@lru_cache(maxsize=256)                # scan periods jitter in recordings
+@cached_tables(maxsize=256)            # scan periods jitter in recordings
 def _forgetting(dt: float, tau: float):
-    """``exp(-dt / tau)``, the factor a step of ``dt`` s keeps of a time constant ``tau``."""
-    return np.exp(-dt / tau)
+    """``exp(-dt / tau)``, the factor a step of ``dt`` s keeps of a time constant ``tau``
+    (a 0-d array: an operand of the prediction's array arithmetic, memo.constants)."""
+    return np.array(np.exp(-dt / tau))
 
 
 def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_rate: float,
@@ -370,10 +370,11 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
         low = alpha < FORGET_FLOOR
         beta = np.where(low, FORGET_FLOOR * (mix.beta / mix.alpha), beta)
         alpha = np.where(low, FORGET_FLOOR, alpha)
-    v_new = IW_OFFSET + k_ext * (mix.v - IW_OFFSET)
+    s = mix.v - _IW
+    v_new = _IW + k_ext * s
     if np.minimum.reduce(v_new) < IW_OFFSET + FORGET_FLOOR:
         v_new = np.maximum(v_new, IW_OFFSET + FORGET_FLOOR)
-    V_new = mix.V * ((v_new - IW_OFFSET) / (mix.v - IW_OFFSET))[:, None, None]
+    V_new = mix.V * ((v_new - _IW) / s)[:, None, None]
     return Mixture(mix.w * p_survival ** dt, alpha, beta, m, P, v_new, V_new, mix.label)
 
 

@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree, Delaunay, QhullError
 from scipy.spatial.distance import pdist
 
 from .ggiw import quad_form2
+from .memo import constants
 
 try:
     # the C routine scipy's ``linkage(y, 'single')`` calls after validating ``y`` (77 us of
@@ -450,6 +451,9 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     return labels
 
 
+_MIN_RATE, = constants(1e-9)
+
+
 def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -> np.ndarray:
     """
     Most likely number of objects ``k`` behind each cell's ``n_points`` detections, each
@@ -461,7 +465,7 @@ def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -
     for every cell at once.
     """
     k = np.arange(1, k_max + 1)[None, :]
-    mean = k * np.maximum(rate, 1e-9)[:, None]
+    mean = k * np.maximum(rate, _MIN_RATE)[:, None]
     log_p = n_points[:, None] * np.log(mean) - mean
     return log_p.argmax(axis=1) + 1
 

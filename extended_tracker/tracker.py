@@ -29,7 +29,7 @@ from .identity import (
     group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
 )
 from .logmath import neg_inf
-from .memo import cached_tables, evolve
+from .memo import cached_tables, evolve, ONE, ZERO
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
 from .state import Estimates, FilterState, find_sorted, NEG_INF, NO_LABELS, StepDiagnostics
@@ -122,7 +122,7 @@ def _gates(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
     return inverses[:n], {
         'centre': mix.m[best, :2],
         'gate_inv': inverses[n:],
-        'gate': gate_threshold(cfg),
+        'gate': np.array(gate_threshold(cfg)),       # an array operand (memo.constants)
         'rate': mix.expected_rate()[best],
     }
 
@@ -262,12 +262,13 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg), gate_inv)
     hidden = None
     if visibility is not None:
-        hidden = np.minimum(np.maximum(1.0 - visibility, 0.0), 1.0)
+        hidden = np.minimum(np.maximum(ONE - visibility, ZERO), ONE)
     # existing components and the birth row (one GGIW per cell) in one batched update
     birth_prior = _birth_prior(stats, cfg, area)
     both = Mixture.concat([mix, birth_prior]) if n_comp else birth_prior
     bcell = np.arange(n_cells)
-    upd_all = update_pairs(both, np.concatenate([comp, n_comp + bcell]), stats,
+    born_rows = np.arange(n_comp, n_comp + n_cells)            # the birth row of each cell
+    upd_all = update_pairs(both, np.concatenate([comp, born_rows]), stats,
                            np.concatenate([cell, bcell]), mc.rho, R,
                            _pad(rate_scale, n_cells, 1.0), _pad(hidden, n_cells, 0.0),
                            _pad(centroid_offset, n_cells, 0.0))
@@ -275,7 +276,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     pair_lik, birth_lik = upd_all.log_lik[:k], upd_all.log_lik[k:]
     p_d_pair = (p_d[comp] if pair_p_d is None
                 else pair_p_d(mix, comp, upd_all.m[:k], upd_all.P[:k]))
-    keep = p_d_pair > 0
+    keep = p_d_pair > ZERO
     pair_rows = None                           # rows of upd_all holding the pairs kept
     if not np.logical_and.reduce(keep):
         pair_rows = keep.nonzero()[0]
@@ -588,10 +589,11 @@ def _chi2_2dof_ppf(p: float) -> float:
     return float(-2.0 * np.log1p(-p))
 
 
-@lru_cache(maxsize=64)
-def _log_constant(x: float) -> float:
-    """``log x`` of a configured constant (a probability), computed once."""
-    return np.log(x)
+@cached_tables(maxsize=64)
+def _log_constant(x: float) -> np.ndarray:
+    """``log x`` of a configured constant (a probability), computed once (a 0-d array: an
+    operand of array arithmetic, memo.constants)."""
+    return np.array(np.log(x))
 
 
 def _cell_claims(mix: Mixture, comp, cell, w_det, n_cells):
@@ -839,7 +841,7 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     reported = chosen.tolist()
     return Estimates(
         label=chosen,
-        existence=np.minimum(np.maximum(lab_w, 0.0), 1.0),
+        existence=np.minimum(np.maximum(lab_w, ZERO), ONE),
         m=mix.m[best],
         P=mix.P[best],
         X=mix.expected_extent(best),

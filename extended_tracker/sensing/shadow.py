@@ -23,9 +23,11 @@ import math
 import numpy as np
 
 from ..ggiw import einsum, Mixture
+from ..memo import constants, HALF, ONE, TWO, ZERO
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
+_MIN_SCALE, = constants(0.05)       # least visible fraction a rate is scaled by
 
 
 @dataclass(frozen=True)
@@ -66,17 +68,17 @@ def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
     np.cos(bearing, out=e[:, 0])
     np.sin(bearing, out=e[:, 1])
     u = e[:, ::-1] * _ACROSS                                     # across it
-    along = np.sqrt(np.maximum(einsum('ki,kij,kj->k', e, X, e), 0.0))
-    across = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, X, u), 0.0))
-    sigma = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, P[:, :2, :2], u), 0.0))
+    along = np.sqrt(np.maximum(einsum('ki,kij,kj->k', e, X, e), ZERO))
+    across = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, X, u), ZERO))
+    sigma = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, P[:, :2, :2], u), ZERO))
     half = np.empty((2, k))
     half[0] = across
     np.add(across, np.minimum(widen_sigmas * sigma, max_widen), out=half[1])
     # asin(half / r) where the sensor lies outside the half-width, else pi / 2 (asin 1;
     # the division is skipped there: r may be 0)
     ratio = np.divide(half, r, out=np.ones((2, k)), where=r > half)
-    half_angle = np.arcsin(np.minimum(np.maximum(ratio, 0.0), 1.0))
-    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, 0.0), r + along, r, u
+    half_angle = np.arcsin(np.minimum(np.maximum(ratio, ZERO), ONE))
+    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, ZERO), r + along, r, u
 
 
 _ACROSS = np.array([-1.0, 1.0])      # (cos, sin) reversed times this is (-sin, cos)
@@ -188,7 +190,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
                 free_sum = np.where(blocked[rows], 0.0, a).sum(axis=1)
                 free_turn[rows if ni is None else ni[rows]] = (
                     free_sum / n_free[rows] - a.sum(axis=1) / width_i[rows])
-    frac_visible = 1.0 - blocked_n / width
+    frac_visible = ONE - blocked_n / width
     # part of the interval outside the field of view is not seen at all: the lengths cut
     # off each end are exactly 0 where the field of view holds it
     cut_lo = cut_hi = 0.0
@@ -208,7 +210,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
                                                frac_visible)
     if not with_shift:
         return visible, None
-    shift = np.where(visible > 0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
+    shift = np.where(visible > ZERO, free_turn + HALF * (cut_lo - cut_hi), ZERO)
     if shift_rows is not None:
         shift[shift_rows:] = 0.0
     return visible, shift
@@ -306,8 +308,8 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     at_sensor = _holds_sensor(mix.m, extent)
     sparse = _sparse(mix, half, plain, step, det.min_fill)
     visible = _seen(visible, r_near, scan, det)
-    rate_scale = np.maximum(visible, 0.05) if det.scale_rate_by_visibility else None
-    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0,
+    rate_scale = np.maximum(visible, _MIN_SCALE) if det.scale_rate_by_visibility else None
+    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == ZERO,
                       at_sensor, sparse)
 
 
@@ -360,7 +362,7 @@ def _expects_too_few(rate: np.ndarray, half: np.ndarray, step: float,
     """Whether each expected rate is below ``min_fill`` of the beams, ``2 half / step``, an
     extent of half-angle ``half`` spans (the test of :func:`_sparse`, for tracks and births
     alike)."""
-    return rate < min_fill * (2.0 * half / step)
+    return rate < min_fill * (TWO * half / step)
 
 
 def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
@@ -432,7 +434,7 @@ def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndar
     line, where the side's thin extent holds it to centimetres, and the track's velocity
     turned off the car's heading until the gate let go of its returns.
     """
-    if not np.logical_or.reduce(shift != 0.0):
+    if not np.logical_or.reduce(shift != ZERO):
         # nothing part hidden (most scans): the offsets are all 0 without the products
         return np.zeros((len(shift), 2))
     Xu = einsum('kij,kj->ki', X, u)
@@ -444,8 +446,8 @@ def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndar
 
 def _seen(visible, r_near, scan: ScanPoints, det) -> np.ndarray:
     """The visible fraction, 0 beyond the scan's range or under ``min_visibility``."""
-    visible = np.where(r_near > scan.range_max, 0.0, visible)
-    return np.where(visible < det.min_visibility, 0.0, visible)
+    visible = np.where(r_near > scan.range_max, ZERO, visible)
+    return np.where(visible < det.min_visibility, ZERO, visible)
 
 
 def _estimate_shadow(bearing, half, r_near, label, occluders, scan, det):
