@@ -446,8 +446,9 @@ def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndar
 
 def _seen(visible, r_near, scan: ScanPoints, det) -> np.ndarray:
     """The visible fraction, 0 beyond the scan's range or under ``min_visibility``."""
-    visible = np.where(r_near > scan.range_max, ZERO, visible)
-    return np.where(visible < det.min_visibility, ZERO, visible)
+    # one selection: a fraction the range test zeroes is under the minimum, or is the 0
+    # the minimum keeps
+    return np.where((r_near > scan.range_max) | (visible < det.min_visibility), ZERO, visible)
 
 
 def _estimate_shadow(bearing, half, r_near, label, occluders, scan, det):
