@@ -363,12 +363,26 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
                                               max_thresholds)).astype(int))
         dropped = len(thresholds) - len(keep)
         thresholds = thresholds[keep]
+    stops = length.searchsorted(thresholds, side='right').tolist()
+    if n <= PASS_MAX_RETURNS:
+        return _labels_by_pass(a, b, stops, n), dropped
+    return _labels_by_jumping(a, b, stops, n), dropped
+
+
+# up to this many returns the labels are read by a Python pass over the forest at each
+# threshold (a few microseconds); past it by numpy pointer jumping, whose cost per
+# threshold hardly grows with n (the two cross near 100 returns)
+PASS_MAX_RETURNS = 100
+
+
+def _labels_by_pass(a: list, b: list, stops: list, n: int) -> list[np.ndarray]:
+    """Labels at each stop: the merges up to it, then one pass reading the roots."""
     # each merge joins two roots (smallest indices) under the smaller one, so a parent is
     # always below its child: one pass in index order reads every root off its parent's
     parent = list(range(n))
     out = []
     done = 0
-    for stop in length.searchsorted(thresholds, side='right').tolist():
+    for stop in stops:
         for i in range(done, stop):
             parent[b[i]] = a[i]
         done = stop
@@ -376,7 +390,32 @@ def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
         for i in range(n):
             labels[i] = labels[labels[i]]
         out.append(np.array(labels, dtype=np.int64))
-    return out, dropped
+    return out
+
+
+def _labels_by_jumping(a: list, b: list, stops: list, n: int) -> list[np.ndarray]:
+    """The same labels as :func:`_labels_by_pass`, the roots found by pointer jumping."""
+    parent = np.arange(n)
+    lo, hi = np.array(a, dtype=np.int64), np.array(b, dtype=np.int64)
+    out = []
+    done = 0
+    for stop in stops:
+        if done < stop:
+            parent[hi[done:stop]] = lo[done:stop]
+            parent = _roots(parent)
+            done = stop
+        out.append(parent.copy())
+    return out
+
+
+def _roots(parent: np.ndarray) -> np.ndarray:
+    """Root of every node of a union-find forest by pointer jumping (vectorised)."""
+    labels = parent
+    while True:
+        nxt = labels[labels]
+        if np.logical_and.reduce(nxt == labels):
+            return labels
+        labels = nxt
 
 
 def _sums_by(labels: np.ndarray, points: np.ndarray, n: int) -> np.ndarray:

@@ -237,6 +237,31 @@ def test_distance_partition_matches_definition(pts, d):
     assert len(pairs) == len(set(lab.tolist())) == len(set(seen.tolist()))
 
 
+@given(point_sets(max_n=60), st.floats(0.0, 0.5), st.floats(0.05, 2.0), st.integers(1, 40))
+def test_distance_labels_by_pass_and_by_jumping_agree(pts, d_min, span, max_thresholds):
+    """The two ways of reading the labels off the merges (a Python root pass per threshold
+    for few returns, numpy pointer jumping for many) give the same arrays, each label the
+    smallest index of its cell."""
+    from extended_tracker import partition
+
+    saved = partition.PASS_MAX_RETURNS
+    try:
+        partition.PASS_MAX_RETURNS = 10 ** 9
+        by_pass, dropped_pass = distance_partitions(pts, d_min, d_min + span, max_thresholds)
+        partition.PASS_MAX_RETURNS = 0
+        by_jumping, dropped = distance_partitions(pts, d_min, d_min + span, max_thresholds)
+    finally:
+        partition.PASS_MAX_RETURNS = saved
+    assert dropped == dropped_pass and len(by_pass) == len(by_jumping)
+    for x, y in zip(by_pass, by_jumping):
+        assert x.dtype == y.dtype == np.int64
+        np.testing.assert_array_equal(x, y)
+        first = {}
+        for i, lab in enumerate(x.tolist()):
+            first.setdefault(lab, i)
+        assert all(lab == i for lab, i in first.items())
+
+
 def test_a_merge_at_exactly_a_threshold_joins_and_each_threshold_comes_once():
     """The thresholds are closed ('closer than or as close as d'), and each distinct one
     gives one partition: returns exactly 0.5 m apart are one cell at 0.5, and with
