@@ -226,7 +226,8 @@ def eig2(A):
     """
     a, b, c = A[..., 0, 0], A[..., 0, 1], A[..., 1, 1]
     half_tr = HALF * (a + c)
-    root = np.sqrt(QUARTER * (a - c) ** 2 + b * b)          # a sum of squares: >= 0
+    d = a - c                                  # squared as d * d: d ** 2's values, no
+    root = np.sqrt(QUARTER * (d * d) + b * b)  # Python operand; a sum of squares, >= 0
     return half_tr + root, half_tr - root
 
 
@@ -525,7 +526,8 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     Ppos = P[:, :2, :2]
     S = Ppos + Y / n[:, None, None]
     if hidden is not None:
-        S = S + (hidden[comp] ** 2)[:, None, None] * X
+        h = hidden[comp]
+        S = S + (h * h)[:, None, None] * X
     # The 2x2 helpers work matrix by matrix, so the matrices they need go through them
     # stacked: one call each instead of three or five (the same values, some 60 fewer
     # numpy calls a step).

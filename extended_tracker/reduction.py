@@ -42,7 +42,8 @@ def _gamma_shape_start(c):
     the equal ``2 / (r + c - 3)``: there ``3 - c + r`` cancels (to 0 once ``c`` passes
     some 1e16, as for a rate whose shape forgetting drove towards 0).
     """
-    r = np.sqrt((c - _3) ** 2 + _24 * c)
+    d = c - _3
+    r = np.sqrt(d * d + _24 * c)
     return np.where(c < _3, (_3 - c + r) / (_12 * c), TWO / (r + c - _3))
 
 

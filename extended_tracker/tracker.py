@@ -570,10 +570,19 @@ def _implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
     coasted until their position is unknown within metres (they could only claim
     far-away returns).
     """
-    major2, _ = eig2(mix.expected_extent())
+    X = mix.expected_extent()
+    limit2 = cfg.reduction.max_semi_axis ** 2
     pos_var = np.maximum(mix.P[:, 0, 0], mix.P[:, 1, 1])
-    return ((major2 > cfg.reduction.max_semi_axis ** 2)
-            | (pos_var > cfg.reduction.max_position_std ** 2))
+    coasted = pos_var > cfg.reduction.max_position_std ** 2
+    # the larger eigenvalue of an SPD matrix is at most its trace: where every trace is
+    # clearly under the limit (most scans) no eigenvalue is taken (the margin covers the
+    # closed form's rounding)
+    if not len(X):
+        return coasted
+    if float(np.maximum.reduce(X[:, 0, 0] + X[:, 1, 1])) * (1.0 + 1e-9) < limit2:
+        return coasted
+    major2, _ = eig2(X)
+    return (major2 > limit2) | coasted
 
 
 def gate_threshold(cfg: TrackerConfig) -> float:

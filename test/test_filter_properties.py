@@ -852,6 +852,34 @@ def test_components_larger_than_any_object_or_lost_within_metres_are_dropped():
     assert _implausible(mix, cfg).tolist() == [False, True, False, True, True, True]
 
 
+@pytest.mark.parametrize('scale', [0.3, 1.5, 3.0, 4.5])
+def test_implausible_extents_against_eigvalsh(scale):
+    """The extent test against numpy's eigenvalues, whether every trace is under the limit
+    (no eigenvalue taken) or not: a semi-axis over max_semi_axis is implausible, whatever
+    the ellipse's shape and orientation."""
+    from extended_tracker.tracker import _implausible
+
+    cfg = TrackerConfig()
+    rng = np.random.default_rng(int(scale * 10))
+    k = 200
+    semi = rng.uniform(0.05, 1.0, (k, 2)) * scale
+    yaw = rng.uniform(0, np.pi, k)
+    R = np.stack([np.stack([np.cos(yaw), -np.sin(yaw)], -1),
+                  np.stack([np.sin(yaw), np.cos(yaw)], -1)], -2)
+    X = R @ (semi[:, :, None] ** 2 * np.eye(2)) @ R.swapaxes(1, 2)
+    v = np.full(k, 20.0)
+    P = np.tile(np.eye(4) * 0.01, (k, 1, 1))
+    mix = Mixture(np.ones(k), np.full(k, 10.0), np.ones(k), np.zeros((k, 4)), P, v,
+                  X * (v - IW_OFFSET)[:, None, None], np.arange(k))
+    major2 = np.linalg.eigvalsh(mix.expected_extent())[:, -1]
+    expected = major2 > cfg.reduction.max_semi_axis ** 2
+    assert _implausible(mix, cfg).tolist() == expected.tolist()
+    if scale < 2:
+        assert not expected.any()
+    if scale > 4:
+        assert expected.any() and not expected.all()
+
+
 
 def test_birth_labels_one_per_set_of_cells_sharing_returns_or_the_claiming_label():
     """
