@@ -20,7 +20,7 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import thin_cardinality
 from .ggiw import Mixture
-from .memo import evolve
+from .memo import evolve, ONE_I, ZERO, ZERO_I
 from .partition import find_root, union_min
 from .reduction import join_parts
 from .state import Estimates, FilterState, find_sorted, NO_LABELS
@@ -202,22 +202,23 @@ def hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerCo
 def record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
     """Carry per-label report counts, scans with returns, first positions and distances
     travelled."""
-    has = est.num_detections > 0
+    has = est.num_detections > ZERO_I
     if len(est) == len(old.reported) and np.logical_and.reduce(est.label == old.reported):
         # the labels of the last report again (most scans): row for row, nothing new
         travel = _norm(est.m[:, :2] - old.reported_origin, 1)
         # only where returns placed it: a coasting label drifts with its predicted velocity
-        travel = np.maximum(np.where(has, travel, 0.0), old.reported_travel)
-        return evolve(new, reported=est.label.copy(), reported_scans=old.reported_scans + 1,
+        travel = np.maximum(np.where(has, travel, ZERO), old.reported_travel)
+        return evolve(new, reported=est.label.copy(),
+                      reported_scans=old.reported_scans + ONE_I,
                       reported_origin=old.reported_origin, reported_travel=travel,
                       reported_size=old.reported_size, reported_hits=old.reported_hits + has)
     index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
     # each label's row in the last report (-1: reported for the first time)
     prev = np.array([index.get(lab, -1) for lab in est.label.tolist()], dtype=np.int64)
-    again = prev >= 0
+    again = prev >= ZERO_I
     i = prev[again]
     scans = np.ones(len(est), dtype=np.int64)
-    scans[again] = old.reported_scans[i] + 1
+    scans[again] = old.reported_scans[i] + ONE_I
     origin = est.m[:, :2].copy()
     origin[again] = old.reported_origin[i]
     size = np.empty(len(est))

@@ -35,6 +35,15 @@ def constants(*values):
 HALF, ONE, TWO, QUARTER, ZERO = constants(0.5, 1.0, 2.0, 0.25, 0.0)
 
 
+def int_constants(*values):
+    """The values as read-only 0-d int64 arrays: :func:`constants` for the operands of
+    integer array expressions (counts, indices), whose results stay int64."""
+    return read_only(*(np.array(int(x), dtype=np.int64) for x in values))
+
+
+ZERO_I, ONE_I, TWO_I, FOUR_I = int_constants(0, 1, 2, 4)
+
+
 def cached_tables(maxsize: int):
     """
     Memoise a function of a few hashable scalars (sizes, rates, a scan period) that

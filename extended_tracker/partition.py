@@ -26,7 +26,7 @@ from scipy.sparse.csgraph import minimum_spanning_tree
 from scipy.spatial import cKDTree, Delaunay, QhullError
 from scipy.spatial.distance import pdist
 
-from .memo import constants, TWO
+from .memo import constants, FOUR_I, ONE_I, TWO, TWO_I, ZERO_I
 
 try:
     # the C routine scipy's ``linkage(y, 'single')`` calls after validating ``y`` (77 us of
@@ -132,7 +132,7 @@ class PartitionSet:
         against two clutter returns (and a track may still take either return alone).
         """
         counts = np.bincount(finest, minlength=len(finest))
-        small = (counts >= 2) & (counts <= split_small)
+        small = (counts >= TWO_I) & (counts <= split_small)
         if not np.logical_or.reduce(small):
             return
         # the finest partition's cells once (the entries are shared, so a cell one variant
@@ -489,10 +489,10 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
         # each centre moves to the mean of its points; an empty cluster's centre stays
         count = np.bincount(labels, minlength=len(centres))
         sums = _sums_by(labels, points, len(centres))
-        if np.logical_and.reduce(count > 0):
+        filled = count > ZERO_I
+        if np.logical_and.reduce(filled):
             centres = sums / count[:, None]
         else:
-            filled = count > 0
             centres[filled] = sums[filled] / count[filled, None]
     return labels
 
@@ -513,7 +513,7 @@ def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -
     k = np.arange(1, k_max + 1)[None, :]
     mean = k * np.maximum(rate, _MIN_RATE)[:, None]
     log_p = n_points[:, None] * np.log(mean) - mean
-    return log_p.argmax(axis=1) + 1
+    return log_p.argmax(axis=1) + ONE_I
 
 
 def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> PartitionSet:
@@ -584,7 +584,7 @@ def _big_cells(points: np.ndarray, labels: np.ndarray):
     """
     m = len(points)
     counts_all = np.bincount(labels, minlength=m)    # not unique / add.at
-    big = (counts_all >= 4).nonzero()[0]
+    big = (counts_all >= FOUR_I).nonzero()[0]
     if not len(big):
         return None
     counts = counts_all[big]
@@ -627,7 +627,7 @@ def _sub_partitions(points, pset, base, big, d2, predicted, cfg, seed):
     k_rate = expected_object_counts(counts[cand], rate, cfg.max_sub_objects)
     k_all = np.minimum(np.minimum(np.maximum(k_pred, k_rate), cfg.max_sub_objects),
                        counts[cand])
-    for row in (k_all >= 2).nonzero()[0]:
+    for row in (k_all >= TWO_I).nonzero()[0]:
         if len(pset.partitions) >= cfg.max_partitions:
             pset.capped_partitions += 1               # no room: not worth a k-means
             continue

@@ -99,3 +99,27 @@ def test_cached_attribute_computes_once_like_cached_property():
         assert len(calls) == 2 and a.__dict__['spread'] == 3.0
         assert isinstance(cls.spread, (cached_attribute, functools.cached_property))
     assert Lean.spread.__doc__ == 'Twice x.' and Lean.spread.name == 'spread'
+
+
+def test_array_constants_give_what_python_scalars_give():
+    """memo.constants and memo.int_constants stand in for Python scalars in array
+    expressions: 0-d, read-only, and the same values and dtypes come out of float64 and
+    int64 arrays as with the scalars they replace (NEP 50: a Python scalar takes the
+    array's dtype; a 0-d float64 array keeps float64 arrays float64, a 0-d int64 array
+    keeps int64 ones int64)."""
+    from extended_tracker.memo import constants, HALF, int_constants, ONE_I, TWO, ZERO_I
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=50) * 1e3
+    n = rng.integers(-20, 20, size=50)
+    for c, value in [(HALF, 0.5), (TWO, 2.0)] + list(zip(constants(1e-9, 3), [1e-9, 3.0])):
+        assert c.shape == () and c.dtype == np.float64 and not c.flags.writeable
+        for got, want in [(x * c, x * value), (x / c, x / value), (c - x, value - x),
+                          (n * c, n * value), (x < c, x < value)]:
+            assert got.dtype == want.dtype
+            np.testing.assert_array_equal(got, want)
+    for c, value in [(ZERO_I, 0), (ONE_I, 1)] + list(zip(int_constants(4, -3), [4, -3])):
+        assert c.shape == () and c.dtype == np.int64 and not c.flags.writeable
+        for got, want in [(n + c, n + value), (n >= c, n >= value), (n * c, n * value)]:
+            assert got.dtype == want.dtype
+            np.testing.assert_array_equal(got, want)
