@@ -110,24 +110,26 @@ def _solve_nu(target, lo, hi, start, iters=60):
     hi = np.maximum(hi, lo)
     k = len(target)
 
-    def f(nu, t):
+    def f(nu, shift):
+        # shift = 2 log 2 - t, taken once a solve
         x = nu - ONE
-        return TWO * (np.log(nu) - digamma(x)) + (_LOG4_A - t), x
+        return TWO * (np.log(nu) - digamma(x)) + shift, x
 
-    ends, _ = f(np.concatenate([lo, hi]), np.concatenate([target, target]))
+    ends, _ = f(np.concatenate([lo, hi]), _LOG4_A - np.concatenate([target, target]))
     below, above_hi = ends[:k] <= ZERO, ends[k:] >= ZERO
     out = np.where(below, lo, np.where(above_hi, hi, 0.0))
     free = ~(below | above_hi)
     if not np.logical_or.reduce(free):
         return out
     t, a, b = target[free], lo[free], hi[free]
+    shift = _LOG4_A - t
     excess = t - _LOG4_A
     with np.errstate(divide='ignore', invalid='ignore'):
         guess = _3 / excess + _GUESS_SHIFT
     nu = np.minimum(np.maximum(np.where(excess > ZERO, guess, start[free]), a), b)
     with np.errstate(divide='ignore', invalid='ignore'):        # fp = 0: bisection below
         for _ in range(iters):
-            val, x = f(nu, t)
+            val, x = f(nu, shift)
             above = val > ZERO                             # the root is above nu
             a = np.where(above, nu, a)
             b = np.where(above, b, nu)
@@ -135,8 +137,10 @@ def _solve_nu(target, lo, hi, start, iters=60):
             nxt = nu / (ONE + val / (nu * fp))                   # u - g(u) / g'(u)
             # inclusive: at the root (val == 0) the step stays on an end of the bracket,
             # and bisecting from there wanders off the root for a dozen steps
-            nxt = np.where((nxt >= a) & (nxt <= b), nxt, HALF * (a + b))
-            done = (np.abs(nxt - nu) <= _RTOL * nu).all()
+            inside = (nxt >= a) & (nxt <= b)
+            if not np.logical_and.reduce(inside):         # bisect where it would leave
+                nxt = np.where(inside, nxt, HALF * (a + b))
+            done = np.logical_and.reduce(np.abs(nxt - nu) <= _RTOL * nu)
             nu = nxt
             if done:
                 break
@@ -244,8 +248,10 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     for _ in range(20):
         step = (np.log(a) - digamma(a) - c) / (ONE / a - _trigamma(a))
         new = a - step
-        a = np.where(new > ZERO, new, a * HALF)
-        if (np.abs(step) <= _RTOL * a).all():
+        positive = new > ZERO
+        # halved where the step would leave a > 0 (rare: the where only then)
+        a = new if np.logical_and.reduce(positive) else np.where(positive, new, a * HALF)
+        if np.logical_and.reduce(np.abs(step) <= _RTOL * a):
             break
     b = a / mean
     # inverse Wishart
