@@ -551,7 +551,8 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     v_new = v + n
     V_new = symmetrize(V + N_hat + Z_hat)
 
-    beta_eff = beta / f
+    # without a rate scale (f = 1) the Gamma rate is beta as it is, and beta + 1 after
+    beta_eff = beta if rate_scale is None else beta / f
     alpha_new = alpha + n
     logdet_V, logdet_Vn, logdet_X, logdet_Y, logdet_S = logdet_spd2(
         np.concatenate([V, V_new, X, Y, S])).reshape(5, k)
@@ -567,7 +568,8 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
         # centroid innovation and spread scaling
         + HALF * logdet_X - HALF * logdet_S + HALF * (n - ONE) * (logdet_X - logdet_Y)
     )
-    return PairUpdate(log_lik, alpha_new, beta + f, m_new, P_new, v_new, V_new)
+    return PairUpdate(log_lik, alpha_new, beta + (ONE if rate_scale is None else f), m_new,
+                      P_new, v_new, V_new)
 
 
 def gate_covariance(mix: Mixture, rho: float, R: np.ndarray) -> np.ndarray:
@@ -617,4 +619,8 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
 def gate_distance2(mix: Mixture, z: np.ndarray, gate_inv: np.ndarray) -> np.ndarray:
     """(n, k) squared gate distance of each of the points ``z`` (k, 2) from each component's
     predicted position, ``gate_inv`` the inverse of :func:`gate_covariance`."""
-    return quad_form2(z[None, :, :] - mix.m[:, None, :2], gate_inv[:, None])
+    # quad_form2's arithmetic in its order, on (n, k) arrays of the coordinates and (n, 1)
+    # columns of the matrices rather than broadcast views of (n, k, 2) and (n, 1, 2, 2)
+    x, y = z[:, 0] - mix.m[:, :1], z[:, 1] - mix.m[:, 1:2]
+    g = gate_inv
+    return g[:, :1, 0] * (x * x) + TWO * g[:, :1, 1] * x * y + g[:, 1:, 1] * (y * y)
