@@ -212,10 +212,12 @@ def inv2(A):
     out = np.empty_like(A)
     a, b, c, d = A[..., 0, 0], A[..., 0, 1], A[..., 1, 0], A[..., 1, 1]
     det = a * d - b * c                # det2 inlined: inv2 runs about ten times a scan
-    out[..., 0, 0] = d / det
-    out[..., 1, 1] = a / det
-    out[..., 0, 1] = -b / det
-    out[..., 1, 0] = -c / det
+    # the adjugate, then one division by det: d / det, a / det, -b / det, -c / det
+    out[..., 0, 0] = d
+    out[..., 1, 1] = a
+    np.negative(b, out=out[..., 0, 1])
+    np.negative(c, out=out[..., 1, 0])
+    out /= det[..., None, None]
     return out
 
 
@@ -277,16 +279,9 @@ def symmetrize(A):
     return HALF * (A + A.swapaxes(-1, -2))
 
 
-def log_gamma2(a):
-    """
-    Bivariate log-gamma ``log Gamma_2(a) = (1/2) log pi + log Gamma(a) + log Gamma(a - 1/2)``.
-
-    The same as ``scipy.special.multigammaln(a, 2)`` (a test checks it) for arrays, without
-    its per-call checks.
-    """
-    return _HALF_LOG_PI + gammaln(a) + gammaln(a - HALF)
-
-
+# the bivariate log-gamma log Gamma_2(a) = (1/2) log pi + log Gamma(a) + log Gamma(a - 1/2)
+# (scipy.special.multigammaln(a, 2), which the update's reference test evaluates) is
+# written out in update_pairs, its log-gammas evaluated with the update's others
 _HALF_LOG_PI = np.array(0.5 * np.log(np.pi))
 _LOG_PI = TWO * _HALF_LOG_PI
 
@@ -556,15 +551,21 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     alpha_new = alpha + n
     logdet_V, logdet_Vn, logdet_X, logdet_Y, logdet_S = logdet_spd2(
         np.concatenate([V, V_new, X, Y, S])).reshape(5, k)
+    # the six log-gammas (the Gamma-Poisson's two, the two bivariate ones' four) in one call
+    h0, h1 = HALF * (v - _D1), HALF * (v_new - _D1)
+    lg = gammaln(np.concatenate([alpha_new, alpha, h1, h1 - HALF, h0, h0 - HALF]))
+    lg_new, lg_old = lg[:k], lg[k:2 * k]
+    lg2_new = _HALF_LOG_PI + lg[2 * k:3 * k] + lg[3 * k:4 * k]        # log Gamma_2(h1)
+    lg2_old = _HALF_LOG_PI + lg[4 * k:5 * k] + lg[5 * k:]             # log Gamma_2(h0)
     log_lik = (
         # Gamma-Poisson: E[e^{-gamma} gamma^n] under Gam(alpha, beta_eff)
-        gammaln(alpha_new) - gammaln(alpha) + alpha * np.log(beta_eff)
+        lg_new - lg_old + alpha * np.log(beta_eff)
         - alpha_new * np.log(beta_eff + ONE)
         # Gaussian normalisation of n points and of the centroid
         - n * _LOG_PI - np.log(n)                                   # d = 2
         # inverse Wishart normalisers before and after
-        + HALF * (v - _D1) * logdet_V - HALF * (v_new - _D1) * logdet_Vn
-        + log_gamma2(HALF * (v_new - _D1)) - log_gamma2(HALF * (v - _D1))
+        + h0 * logdet_V - h1 * logdet_Vn
+        + lg2_new - lg2_old
         # centroid innovation and spread scaling
         + HALF * logdet_X - HALF * logdet_S + HALF * (n - ONE) * (logdet_X - logdet_Y)
     )

@@ -450,13 +450,6 @@ def test_forgetting_far_faster_than_the_scan_keeps_the_parameters_valid(tau):
     np.testing.assert_allclose(out.expected_extent(), mix.expected_extent(), rtol=1e-6)
 
 
-def test_log_gamma2_equals_scipy_multigammaln():
-    from extended_tracker.ggiw import log_gamma2
-
-    a = np.array([0.6, 1.0, 2.5, 7.3, 150.0, 1e5])
-    np.testing.assert_allclose(log_gamma2(a), [multigammaln(x, 2) for x in a], rtol=1e-13)
-
-
 def test_closed_form_eigenvalues_and_outlines():
     """eig2 against LAPACK; marker outlines lie on the extent ellipse (p-c)'X^-1(p-c) = 1."""
     from extended_tracker.ggiw import eig2
