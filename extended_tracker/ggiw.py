@@ -270,8 +270,16 @@ def quad_form2(e, A):
     ``e^T A e`` of (..., 2) vectors and symmetric (..., 2, 2) matrices, broadcast against
     each other, in closed form (the off-diagonal read once and doubled).
     """
-    x, y = e[..., 0], e[..., 1]
-    return A[..., 0, 0] * (x * x) + TWO * A[..., 0, 1] * x * y + A[..., 1, 1] * (y * y)
+    return quad_form2_xy(e[..., 0], e[..., 1], A[..., 0, 0], A[..., 0, 1], A[..., 1, 1])
+
+
+def quad_form2_xy(x, y, a, b, c):
+    """
+    ``[x y] [[a b] [b c]] [x y]^T`` from the coordinates and the matrix entries, broadcast
+    against each other: :func:`quad_form2` on arrays the caller lays out (contiguous
+    coordinate arrays broadcast faster than views of stacked vectors and matrices).
+    """
+    return a * (x * x) + TWO * b * x * y + c * (y * y)
 
 
 def symmetrize(A):
@@ -620,8 +628,8 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
 def gate_distance2(mix: Mixture, z: np.ndarray, gate_inv: np.ndarray) -> np.ndarray:
     """(n, k) squared gate distance of each of the points ``z`` (k, 2) from each component's
     predicted position, ``gate_inv`` the inverse of :func:`gate_covariance`."""
-    # quad_form2's arithmetic in its order, on (n, k) arrays of the coordinates and (n, 1)
-    # columns of the matrices rather than broadcast views of (n, k, 2) and (n, 1, 2, 2)
-    x, y = z[:, 0] - mix.m[:, :1], z[:, 1] - mix.m[:, 1:2]
+    # on (n, k) arrays of the coordinates and (n, 1) columns of the matrices rather than
+    # broadcast views of (n, k, 2) and (n, 1, 2, 2)
     g = gate_inv
-    return g[:, :1, 0] * (x * x) + TWO * g[:, :1, 1] * x * y + g[:, 1:, 1] * (y * y)
+    return quad_form2_xy(z[:, 0] - mix.m[:, :1], z[:, 1] - mix.m[:, 1:2],
+                         g[:, :1, 0], g[:, :1, 1], g[:, 1:, 1])

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..ggiw import einsum, Mixture
+from ..ggiw import einsum, Mixture, quad_form2_xy
 from ..memo import constants, HALF, ONE, TWO, ZERO
 from .scan import ScanPoints
 
@@ -319,9 +319,8 @@ def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
     a, b, c, d = extent[:, 0, 0], extent[:, 0, 1], extent[:, 1, 0], extent[:, 1, 1]
     det = a * d - b * c
     x, y = m[:, 0], m[:, 1]
-    # quad_form2 of inv2(extent): the same operations on the three entries it reads (the
-    # constants as arrays, the squares as products: the same values)
-    return (d / det) * (x * x) + TWO * (-b / det) * x * y + (a / det) * (y * y) < ONE
+    # quad_form2 of inv2(extent): the same operations on the three entries it reads
+    return quad_form2_xy(x, y, d / det, -b / det, a / det) < ONE
 
 
 # visible fraction of its own extent from which the scan shows an object's returns (all
