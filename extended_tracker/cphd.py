@@ -521,11 +521,10 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         np.logaddexp.at(log_u_cell, cells, vals)
 
     per_partition = lse_last(lam_P + log_card[None, :])
-    log_L_a = np.logaddexp.reduce(per_partition, initial=NEG_INF, keepdims=True)
-    log_L = float(log_L_a[0])
+    log_L = lse1(per_partition)
     if log_L == NEG_INF:
         return _prediction_stands(log_w, n_cells, log_card, n_part)
-    log_L_a.shape = ()                          # a 0-d operand (memo.constants)
+    log_L_a = np.array(log_L)                   # a 0-d operand (memo.constants)
     log_part_weight = per_partition - log_L_a
     log_u0 = lse1(u0_terms) - log_nbar - log_L
     log_u_cell = log_u_cell - np.array(log_nbar) - log_L_a

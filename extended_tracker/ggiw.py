@@ -518,7 +518,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     Z = stats.scatter[cell]
     alpha = mix.alpha[comp]
     beta = mix.beta[comp]
-    f = 1.0 if rate_scale is None else rate_scale[comp]
+    f = ONE if rate_scale is None else rate_scale[comp]
     m = mix.m[comp]
     P = mix.P[comp]
     v = mix.v[comp]
@@ -554,8 +554,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     v_new = v + n
     V_new = symmetrize(V + N_hat + Z_hat)
 
-    # without a rate scale (f = 1) the Gamma rate is beta as it is, and beta + 1 after
-    beta_eff = beta if rate_scale is None else beta / f
+    beta_eff = beta if rate_scale is None else beta / f      # f = 1: beta as it is
     alpha_new = alpha + n
     logdet_V, logdet_Vn, logdet_X, logdet_Y, logdet_S = logdet_spd2(
         np.concatenate([V, V_new, X, Y, S])).reshape(5, k)
@@ -577,8 +576,7 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
         # centroid innovation and spread scaling
         + HALF * logdet_X - HALF * logdet_S + HALF * (n - ONE) * (logdet_X - logdet_Y)
     )
-    return PairUpdate(log_lik, alpha_new, beta + (ONE if rate_scale is None else f), m_new,
-                      P_new, v_new, V_new)
+    return PairUpdate(log_lik, alpha_new, beta + f, m_new, P_new, v_new, V_new)
 
 
 def gate_covariance(mix: Mixture, rho: float, R: np.ndarray) -> np.ndarray:

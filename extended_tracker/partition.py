@@ -480,9 +480,9 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     labels = np.zeros(n, dtype=np.int64)
     # squares as products (x ** 2 is x * x in numpy, bit for bit, but a Python operand
     # costs each call more than the arithmetic here)
-    x, y = x[:, None], y[:, None]
+    x_col, y_col = x[:, None], y[:, None]
     for _ in range(iters):
-        dx, dy = x - centres[:, 0], y - centres[:, 1]
+        dx, dy = x_col - centres[:, 0], y_col - centres[:, 1]
         new = (dx * dx + dy * dy).argmin(axis=1)
         if _ and np.logical_and.reduce(new == labels):       # not array_equal's wrapper
             break

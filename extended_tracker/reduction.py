@@ -170,8 +170,8 @@ def _floor_extent(V, v):
 def _nu_floor(mean_trace, t):
     """Smallest ``nu`` whose ``tr E[X] = nu t / (nu - d - 1)`` is within the ratio."""
     c = _RATIO * mean_trace
-    base = _NU_BASE                            # nu = d + 1 is v = 2d + 2
-    return np.maximum(base * c / np.maximum(c - t, _TINY_DIFF), _NU_MIN)
+    # _NU_BASE: nu = d + 1 is v = 2d + 2
+    return np.maximum(_NU_BASE * c / np.maximum(c - t, _TINY_DIFF), _NU_MIN)
 
 
 def _iw_psi_sum(nu):
@@ -318,6 +318,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     # members move it by less than that: their weight is added to the head instead of a
     # full moment match)
     members = [[] for _ in range(n_groups)]
+    member_w = [[] for _ in range(n_groups)]
     far_group = [False] * n_groups
     heavy = [False] * n_groups
     w_order = mix.w[order].tolist()
@@ -329,6 +330,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         elif w >= ABSORB_RATIO * head_w:
             heavy[g] = True
         members[g].append(o)
+        member_w[g].append(w)
         far_group[g] = far_group[g] or far
     kept, multi, absorbed, absorbed_w = [], [], [], []
     for g, group in enumerate(members):
@@ -340,9 +342,10 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
             multi.append(np.array(group, dtype=np.int64))
         else:
             absorbed.append(group[0])
-            total = mix.w[group[0]]
-            for o in group[1:]:                        # in order, as reduceat adds
-                total += mix.w[o]
+            ws = member_w[g]
+            total = ws[0]
+            for x in ws[1:]:                           # in order, as reduceat adds
+                total += x
             absorbed_w.append(total)
     for g in (g for g, far in enumerate(far_group) if far):
         remaining = np.array(members[g], dtype=np.int64)    # heaviest first

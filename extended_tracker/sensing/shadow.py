@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ..ggiw import einsum, Mixture, quad_form2_xy
+from ..ggiw import einsum, inv2, Mixture, quad_form2
 from ..memo import constants, HALF, ONE, TWO, ZERO
 from .scan import ScanPoints
 
@@ -316,11 +316,7 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
 def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
     """Whether the sensor (the origin) lies within each outline, the ellipse of the
     expected extent ``extent`` about the centre ``m[:, :2]``."""
-    a, b, c, d = extent[:, 0, 0], extent[:, 0, 1], extent[:, 1, 0], extent[:, 1, 1]
-    det = a * d - b * c
-    x, y = m[:, 0], m[:, 1]
-    # quad_form2 of inv2(extent): the same operations on the three entries it reads
-    return quad_form2_xy(x, y, d / det, -b / det, a / det) < ONE
+    return quad_form2(m[:, :2], inv2(extent)) < ONE
 
 
 # visible fraction of its own extent from which the scan shows an object's returns (all
