@@ -25,7 +25,7 @@ import math
 import numpy as np
 from scipy.special import gammaln
 
-from .memo import cached_tables
+from .memo import cached_tables, lean_init
 from .logmath import logsumexp, lse1, lse_last, neg_inf
 
 NEG_INF = -np.inf
@@ -34,6 +34,7 @@ BATCH_MIN_PARTITIONS = 6
 BATCH_MIN_SINGLETONS = 12
 
 
+@lean_init
 @dataclass(frozen=True)
 class UpdateWeights:
     """

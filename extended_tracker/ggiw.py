@@ -20,7 +20,8 @@ import numpy as np
 from scipy.special import gammaln
 
 from .memo import (
-    cached_attribute, cached_tables, constants, evolve, HALF, ONE, QUARTER, read_only, TWO,
+    cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE, QUARTER,
+    read_only, TWO,
 )
 
 try:
@@ -37,6 +38,7 @@ IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
 _IW, _D1 = constants(IW_OFFSET, D + 1)
 
 
+@lean_init
 @dataclass(frozen=True)
 class Mixture:
     """
@@ -384,6 +386,7 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
 
 # --- update with one cell (section 3), batched over (component, cell) pairs ---
 
+@lean_init
 @dataclass(frozen=True)
 class CellStats:
     """
@@ -439,6 +442,7 @@ def cell_stats(points: np.ndarray, cells: list[np.ndarray],
     return CellStats(sizes, mean, scatter, log_c)
 
 
+@lean_init
 @dataclass(frozen=True)
 class PairUpdate:
     """Posterior GGIW parameters and predicted log-likelihoods of (component, cell) pairs."""

@@ -14,12 +14,13 @@ import numpy as np
 
 from .config import ExtractionConfig, TrackerConfig
 from .ggiw import eig2, Mixture
-from .memo import cached_attribute, read_only
+from .memo import cached_attribute, lean_init, read_only
 
 NEG_INF = -np.inf
 NO_LABELS = read_only(np.zeros(0, np.int64))[0]
 
 
+@lean_init
 @dataclass(frozen=True)
 class Estimates:
     """

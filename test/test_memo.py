@@ -123,3 +123,57 @@ def test_array_constants_give_what_python_scalars_give():
         for got, want in [(n + c, n + value), (n >= c, n >= value), (n * c, n * value)]:
             assert got.dtype == want.dtype
             np.testing.assert_array_equal(got, want)
+
+
+def _lean_classes():
+    from extended_tracker.cphd import UpdateWeights
+    from extended_tracker.ggiw import CellStats, PairUpdate
+    from extended_tracker.sensing.background import BackgroundState
+    from extended_tracker.sensing.scan import ScanPoints
+    return [Mixture, CellStats, PairUpdate, UpdateWeights, Estimates, Visibility, ScanPoints,
+            BackgroundState]
+
+
+@pytest.mark.parametrize('cls', _lean_classes())
+def test_lean_init_builds_what_the_dataclass_init_builds(cls):
+    """memo.lean_init: the same parameters and defaults, the same fields stored (by
+    position or keyword, defaults left out or not), still frozen, still equal."""
+    from extended_tracker.memo import lean_init  # noqa: F401 (what is tested)
+    fields = dataclasses.fields(cls)
+    native = cls.__init__.dataclass_init
+    assert (inspect.signature(cls.__init__).parameters.keys()
+            == inspect.signature(native).parameters.keys())
+    for name, p in inspect.signature(native).parameters.items():
+        assert inspect.signature(cls.__init__).parameters[name].default == p.default
+    values = [object() for _ in fields]
+    required = [f for f in fields if f.default is dataclasses.MISSING]
+    for args, kwargs in [(values, {}), ([], {f.name: v for f, v in zip(fields, values)}),
+                         (values[:len(required)], {})]:
+        lean = cls(*args, **kwargs)
+        ref = object.__new__(cls)
+        native(ref, *args, **kwargs)
+        assert lean.__dict__ == ref.__dict__
+        assert [getattr(lean, f.name) for f in fields] == [getattr(ref, f.name)
+                                                          for f in fields]
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(lean, fields[0].name, 1)
+    with pytest.raises(TypeError):
+        cls(*values, values[0])                       # one argument too many
+    with pytest.raises(TypeError):
+        cls(*values[:len(required) - 1])              # one required argument missing
+
+
+@pytest.mark.parametrize('extra', [
+    'y: list = dataclasses.field(default_factory=list)',
+    'y: int = dataclasses.field(default=0, init=False)',
+    'y: int = dataclasses.field(default=0, kw_only=True)',
+    'y: dataclasses.InitVar[int] = 0',
+    'def __post_init__(self):\n        pass',
+])
+def test_lean_init_refuses_an_init_that_does_more_than_store(extra):
+    from extended_tracker.memo import lean_init
+    namespace = {'dataclasses': dataclasses}
+    exec(f'@dataclasses.dataclass(frozen=True)\nclass C:\n    x: int\n    {extra}\n',
+         namespace)
+    with pytest.raises(TypeError, match='does more than store'):
+        lean_init(namespace['C'])

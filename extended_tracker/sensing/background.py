@@ -72,9 +72,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..memo import lean_init
 from .scan import ScanPoints
 
 
+@lean_init
 @dataclass(frozen=True)
 class BackgroundState:
     """Per-beam arrays of length B (message order)."""

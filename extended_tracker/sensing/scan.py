@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from ..errors import ScanError
-from ..memo import cached_attribute
+from ..memo import cached_attribute, lean_init
 
 INVALID_KINDS = ('nan', 'pos_inf', 'neg_inf', 'below_min', 'above_max')
 # beam clutter density (ScanPoints.beam_clutter_log_density) is held at its value here
@@ -70,6 +70,7 @@ def frame_of(scan) -> str:
     return str(getattr(scan.header, 'frame_id', '') or '')
 
 
+@lean_init
 @dataclass(frozen=True)
 class ScanPoints:
     """

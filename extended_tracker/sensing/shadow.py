@@ -23,13 +23,14 @@ import math
 import numpy as np
 
 from ..ggiw import einsum, inv2, Mixture, quad_form2
-from ..memo import constants, HALF, ONE, TWO, ZERO
+from ..memo import constants, HALF, lean_init, ONE, TWO, ZERO
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
 _MIN_SCALE, = constants(0.05)       # least visible fraction a rate is scaled by
 
 
+@lean_init
 @dataclass(frozen=True)
 class Visibility:
     """Per-component detection model of one scan (arrays of length n)."""
