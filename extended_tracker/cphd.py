@@ -626,7 +626,7 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
         top = min(int(mean), n_max)                    # the largest mean^k / k! up to N_max
         if top * math.log(mean) - math.lgamma(top + 1) > 700.0:
             return _predict_cardinality_log(log_card, p_s, mean)
-        np.cumprod(mean / n[1:], out=birth[1:])
+        np.multiply.accumulate(mean / n[1:], out=birth[1:])      # np.cumprod, unwrapped
     else:
         birth[1:] = 0.0
     out = np.convolve(p, birth)[:n_max + 1]

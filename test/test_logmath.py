@@ -5,7 +5,9 @@ from hypothesis import given, strategies as st
 import numpy as np
 from scipy.special import logsumexp as scipy_lse
 
-from extended_tracker.logmath import logsumexp, lse1, lse_last, LSE_REDUCE_MAX, neg_inf
+from extended_tracker.logmath import (
+    filled, logsumexp, lse1, lse_last, LSE_REDUCE_MAX, neg_inf,
+)
 
 values = st.lists(st.one_of(st.floats(-800, 800), st.just(-np.inf)), min_size=1, max_size=12)
 
@@ -69,3 +71,14 @@ def test_neg_inf_is_a_new_writable_full_array():
         if a.size:
             a.flat[0] = 1.0                                 # its own memory
             assert b.flat[0] == -np.inf
+
+
+def test_filled_is_np_full_as_floats():
+    """``filled`` stands in for ``np.full`` with float values (and config values that
+    are ints): the same doubles, float64, a new writable array each call."""
+    for shape, value in [(4, 2.5), ((2, 3), -1e-300), (0, 1.0), (3, 7), (5, np.inf)]:
+        a, b = filled(shape, value), filled(shape, value)
+        want = np.full(shape, float(value))
+        assert a.dtype == np.float64 and a.shape == want.shape and a.flags.writeable
+        np.testing.assert_array_equal(a, want)
+        assert a is not b and not np.shares_memory(a, b)
