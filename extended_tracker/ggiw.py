@@ -20,8 +20,8 @@ import numpy as np
 from scipy.special import gammaln
 
 from .memo import (
-    cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE, QUARTER,
-    read_only, TWO,
+    all_of, cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE,
+    QUARTER, read_only, TWO,
 )
 
 try:
@@ -165,7 +165,7 @@ class Mixture:
     def _by_label(self):
         order = self.label.argsort(kind='stable')
         lab = self.label[order]
-        if np.logical_and.reduce(lab[1:] != lab[:-1]):
+        if all_of(lab[1:] != lab[:-1]):
             # one component a label (a predicted or reduced mixture, most scans): each is
             # its label's head, and the weights order nothing
             n = len(order)

@@ -20,7 +20,7 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import thin_cardinality
 from .ggiw import Mixture
-from .memo import evolve, ONE_I, ZERO, ZERO_I
+from .memo import all_of, any_of, evolve, ONE_I, ZERO, ZERO_I
 from .partition import find_root, union_min
 from .reduction import join_parts
 from .state import Estimates, FilterState, find_sorted, NO_LABELS
@@ -192,7 +192,7 @@ def hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerCo
         is_y, is_a = mix.label == y, mix.label == a
         label[is_y], label[is_a] = a, y
         est_label[est.label == y] = a
-        if not (rec == a).any():
+        if not any_of(rec == a):
             rec[rec == y] = a
     order = est_label.argsort(kind='stable')
     return (evolve(new, mixture=evolve(mix, label=label)),
@@ -203,7 +203,7 @@ def record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filter
     """Carry per-label report counts, scans with returns, first positions and distances
     travelled."""
     has = est.num_detections > ZERO_I
-    if len(est) == len(old.reported) and np.logical_and.reduce(est.label == old.reported):
+    if len(est) == len(old.reported) and all_of(est.label == old.reported):
         # the labels of the last report again (most scans): row for row, nothing new
         travel = _norm(est.m[:, :2] - old.reported_origin, 1)
         # only where returns placed it: a coasting label drifts with its predicted velocity
@@ -301,7 +301,7 @@ def join_pairs(state: FilterState, est: Estimates, cfg: TrackerConfig):
         rows[swap] = rows[swap][:, ::-1]
         ready = runs >= rc.pair_scans
         forming = est.label[rows[~ready, 1]]
-        if np.logical_or.reduce(ready):
+        if any_of(ready):
             state, est, joined = _join(state, est, rows[ready], cfg)
             pairs, runs = pairs[~ready], runs[~ready]
     return evolve(state, pairs=pairs, pair_runs=runs), est, joined, forming
@@ -357,7 +357,7 @@ def remember_shown(old: FilterState, new: FilterState, shown: Estimates,
             and lab not in gone]
     clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
     clock += ((0.0, old.next_label),)
-    if not keep and np.logical_and.reduce(shown.label[1:] > shown.label[:-1]):
+    if not keep and all_of(shown.label[1:] > shown.label[:-1]):
         # every label of the record is shown again or gone (most scans): the record is this
         # scan's, its labels ascending already (as the estimates come)
         return evolve(new, shown=shown.label.copy(), shown_pos=shown.m[:, :2].copy(),
@@ -436,7 +436,7 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
     dv = _norm(est.m[seg, None, 2:] - est.m[None, seg, 2:], 2)
     near = (d <= gap) & (dv <= speed)
     np.fill_diagonal(near, False)
-    if not near.any():
+    if not any_of(near):
         return est, 0
     parent = list(range(s))
     for i, j in zip(*near.nonzero()):

@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree, Delaunay, QhullError
 from scipy.spatial.distance import pdist
 
 from .ggiw import quad_form2_xy
-from .memo import constants, FOUR_I, ONE_I, TWO_I, ZERO_I
+from .memo import all_of, any_of, constants, FOUR_I, ONE_I, TWO_I, ZERO_I
 
 try:
     # the C routine scipy's ``linkage(y, 'single')`` calls after validating ``y`` (77 us of
@@ -134,7 +134,7 @@ class PartitionSet:
         """
         counts = np.bincount(finest, minlength=len(finest))
         small = (counts >= TWO_I) & (counts <= split_small)
-        if not np.logical_or.reduce(small):
+        if not any_of(small):
             return
         # the finest partition's cells once (the entries are shared, so a cell one variant
         # adds is known to the next); each variant is them with one cell's returns alone
@@ -413,7 +413,7 @@ def _roots(parent: np.ndarray) -> np.ndarray:
     labels = parent
     while True:
         nxt = labels[labels]
-        if np.logical_and.reduce(nxt == labels):
+        if all_of(nxt == labels):
             return labels
         labels = nxt
 
@@ -484,14 +484,14 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     for _ in range(iters):
         dx, dy = x_col - centres[:, 0], y_col - centres[:, 1]
         new = (dx * dx + dy * dy).argmin(axis=1)
-        if _ and np.logical_and.reduce(new == labels):       # not array_equal's wrapper
+        if _ and all_of(new == labels):       # not array_equal's wrapper
             break
         labels = new
         # each centre moves to the mean of its points; an empty cluster's centre stays
         count = np.bincount(labels, minlength=len(centres))
         sums = _sums_by(labels, points, len(centres))
         filled = count > ZERO_I
-        if np.logical_and.reduce(filled):
+        if all_of(filled):
             centres = sums / count[:, None]
         else:
             centres[filled] = sums[filled] / count[filled, None]

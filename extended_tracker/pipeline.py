@@ -39,7 +39,7 @@ from .config import TrackerConfig
 from .cphd import thin_cardinality
 from .errors import ScanError
 from .ggiw import gate_covariance, gate_distance2, inv2
-from .memo import evolve
+from .memo import any_of, evolve
 from .sensing.background import BackgroundState, beams_near_tracks, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability, sparse_births
@@ -305,13 +305,13 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         # births of this scan stay), and their weight taken from the cardinality
         mix = pred.mixture
         on_bg = _absorbed(mix, learned, points, cfg) & (mix.label < filt.next_label)
-        if np.logical_or.reduce(on_bg):
+        if any_of(on_bg):
             pred = evolve(pred, mixture=mix.take(~on_bg),
                           log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
             diag['absorbed'] = int(np.count_nonzero(on_bg))
     vis = detection_model(pred.mixture, sp, cfg)
     drop = None if vis.outside is None else vis.outside | vis.at_sensor | vis.sparse
-    if drop is not None and np.logical_or.reduce(drop):
+    if drop is not None and any_of(drop):
         # objects that left the field of view or range can never be seen again here:
         # dropped rather than left to coast forever with p_D = 0. So are components the
         # sensor would stand in, and those in view that expect far fewer returns than the

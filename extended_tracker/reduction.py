@@ -19,7 +19,7 @@ from scipy.special import digamma, zeta
 from .ggiw import (
     D, eig2, einsum, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize, weight_key,
 )
-from .memo import constants, HALF, ONE, TWO, ZERO
+from .memo import all_of, any_of, constants, HALF, ONE, TWO, ZERO
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -119,7 +119,7 @@ def _solve_nu(target, lo, hi, start, iters=60):
     below, above_hi = ends[:k] <= ZERO, ends[k:] >= ZERO
     out = np.where(below, lo, np.where(above_hi, hi, 0.0))
     free = ~(below | above_hi)
-    if not np.logical_or.reduce(free):
+    if not any_of(free):
         return out
     t, a, b = target[free], lo[free], hi[free]
     shift = _LOG4_A - t
@@ -138,9 +138,9 @@ def _solve_nu(target, lo, hi, start, iters=60):
             # inclusive: at the root (val == 0) the step stays on an end of the bracket,
             # and bisecting from there wanders off the root for a dozen steps
             inside = (nxt >= a) & (nxt <= b)
-            if not np.logical_and.reduce(inside):         # bisect where it would leave
+            if not all_of(inside):                        # bisect where it would leave
                 nxt = np.where(inside, nxt, HALF * (a + b))
-            done = np.logical_and.reduce(np.abs(nxt - nu) <= _RTOL * nu)
+            done = all_of(np.abs(nxt - nu) <= _RTOL * nu)
             nu = nxt
             if done:
                 break
@@ -250,8 +250,8 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
         new = a - step
         positive = new > ZERO
         # halved where the step would leave a > 0 (rare: the where only then)
-        a = new if np.logical_and.reduce(positive) else np.where(positive, new, a * HALF)
-        if np.logical_and.reduce(np.abs(step) <= _RTOL * a):
+        a = new if all_of(positive) else np.where(positive, new, a * HALF)
+        if all_of(np.abs(step) <= _RTOL * a):
             break
     b = a / mean
     # inverse Wishart
@@ -301,7 +301,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     # a weight of 0 (or below the smallest normal double) is pruned even with
     # prune_weight 0: a group of such members has no weight to match moments by
     keep = mix.w >= max(prune_weight, _TINY)
-    if not np.logical_and.reduce(keep):
+    if not all_of(keep):
         mix = mix.take(keep)
     if not len(mix):
         return mix, 0

@@ -29,7 +29,7 @@ from .identity import (
     group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
 )
 from .logmath import filled, neg_inf
-from .memo import cached_tables, evolve, ONE, ZERO
+from .memo import all_of, any_of, cached_tables, evolve, ONE, ZERO
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
 from .state import Estimates, FilterState, find_sorted, NEG_INF, NO_LABELS, StepDiagnostics
@@ -237,7 +237,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     mix = state.mixture
     n_comp = len(mix)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not np.isfinite(points).all():
+    if not all_of(np.isfinite(points)):
         # the pipeline's scan conversion masks and counts such beams; a direct caller
         # gets told here rather than by whatever numeric routine meets them first
         bad = int((~np.isfinite(points).all(axis=1)).sum())
@@ -278,7 +278,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
                 else pair_p_d(mix, comp, upd_all.m[:k], upd_all.P[:k]))
     keep = p_d_pair > ZERO
     pair_rows = None                           # rows of upd_all holding the pairs kept
-    if not np.logical_and.reduce(keep):
+    if not all_of(keep):
         pair_rows = keep.nonzero()[0]
         comp, cell, p_d_pair, pair_lik = comp[keep], cell[keep], p_d_pair[keep], pair_lik[keep]
     diag.pairs = len(comp)
@@ -298,7 +298,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         # recordings
         free = born_ok.copy()
         free[cell] = False
-        if np.logical_or.reduce(free):
+        if any_of(free):
             rows = free.nonzero()[0]
             refused = rows[no_birth(upd_all.take(k + rows))]
             diag.sparse_births = len(refused)
@@ -310,7 +310,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         # clutter return by return (clutter alone would make every partition holding it
         # impossible, and the cardinality NaN from then on)
         lonely = (stats.n > 1) & ~np.isfinite(log_g).any(axis=0)
-        if not lonely.any():
+        if not any_of(lonely):
             lonely = None
     partitions = pset.partitions
     if lonely is not None:
@@ -408,7 +408,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     if len(forming):
         confirmed &= ~(find_sorted(np.sort(forming), candidates.label)[1]
                        & ~find_sorted(state.shown, candidates.label)[1])
-    shown = candidates if np.logical_and.reduce(confirmed) else candidates.take(confirmed)
+    shown = candidates if all_of(confirmed) else candidates.take(confirmed)
     new_state = remember_shown(state, new_state, shown, cfg.extraction.handover_time, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
@@ -439,7 +439,7 @@ def _distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
     so a collision of sums can never drop a partition that differs.
     """
     sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=len(partitions))
-    if len(partitions) < 2 or not sizes.all():
+    if len(partitions) < 2 or not all_of(sizes):
         return partitions
     n_cells = len(cells)
     member_sum = np.add.reduceat(_mix64(np.concatenate(cells)),          # size: returns
@@ -500,7 +500,7 @@ def _held_p_d(state: FilterState, cfg: TrackerConfig, p_d: np.ndarray, shadowed:
     the outline, is most often the occluder in front of a hidden object, and holds
     nothing back.
     """
-    if not np.logical_or.reduce(shadowed) or not len(state.reported):
+    if not any_of(shadowed) or not len(state.reported):
         return p_d, np.zeros(len(p_d), dtype=bool)
     mix = state.mixture
     confirmed = state.reported[state.confirmed_rows(cfg.extraction)]
@@ -753,7 +753,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     d2 = einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
     close = (np.maximum(d2, d2.T) <= merge_distance)
     np.fill_diagonal(close, False)
-    if not close.any():
+    if not any_of(close):
         return mix, 0
     scans = np.zeros(len(cand), dtype=np.int64)
     if reported is not None and len(reported):
@@ -798,14 +798,14 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     if not len(mix):
         return mix, next_label
     order, is_head, group = mix.by_label()
-    if np.logical_and.reduce(is_head):
+    if all_of(is_head):
         return mix, next_label                         # one component a label (most scans)
     heads = order[is_head]
     e = mix.m[order, :2] - mix.m[heads[group], :2]
     d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
-    if not np.logical_or.reduce(far):
+    if not any_of(far):
         return mix, next_label
     heavy = far & (mix.w >= split_weight)
     label = mix.label.copy()

@@ -177,3 +177,24 @@ def test_lean_init_refuses_an_init_that_does_more_than_store(extra):
          namespace)
     with pytest.raises(TypeError, match='does more than store'):
         lean_init(namespace['C'])
+
+
+def test_all_of_and_any_of_give_all_and_any():
+    """memo.all_of / any_of stand in for ``np.logical_and.reduce`` / ``logical_or.reduce``
+    on 1-D arrays and ``a.all()`` / ``a.any()`` on any: booleans of every mix, empty
+    arrays, and the truth of numbers (NaN and -0.0 included)."""
+    from extended_tracker.memo import all_of, any_of
+
+    rng = np.random.default_rng(3)
+    cases = [np.zeros(0, bool), np.zeros((3, 0), bool), np.array(True), np.array([0.0, -0.0]),
+             np.array([np.nan, 1.0]), np.array([np.nan, 0.0]), np.array([0, 2, -1]),
+             np.ones((2, 3), bool), np.eye(3, dtype=bool)]
+    for n in (1, 2, 7, 60, 1000):
+        for p in (0.0, 0.5, 0.99, 1.0):
+            cases.append(rng.random(n) < p)
+    for a in cases:
+        assert all_of(a) == bool(a.all())
+        assert any_of(a) == bool(a.any())
+        if a.ndim == 1:
+            assert all_of(a) == bool(np.logical_and.reduce(a))
+            assert any_of(a) == bool(np.logical_or.reduce(a))

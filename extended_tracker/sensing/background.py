@@ -72,7 +72,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..memo import lean_init
+from ..memo import any_of, lean_init
 from .scan import ScanPoints
 
 
@@ -124,7 +124,7 @@ def beams_near_tracks(scan: ScanPoints, track_centres: np.ndarray,
     dy = p[:, 1, None] - track_centres[None, :, 1]
     within = np.sqrt(dx * dx + dy * dy) <= (track_radius + gate)[None, :]   # norm's bits
     near[scan.beam[np.logical_or.reduce(within, axis=1)]] = True
-    if np.logical_or.reduce(guard):
+    if any_of(guard):
         prot[scan.beam[np.logical_or.reduce(within[:, guard], axis=1)]] = True
     return prot, near
 
@@ -210,7 +210,7 @@ def _continues(r, b, which, reach, margin, wrap=False):
         rs = r[idx, None]
         bj = _padded(b, np.nan, wrap)[idx[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
         hit = np.logical_or.reduce((np.abs(bj - rs) <= margin) & (rs <= reach), axis=1)
-        if not np.logical_or.reduce(hit):
+        if not any_of(hit):
             return out
         if run is None:
             run = _runs(r, which, reach[NEIGHBOUR_BEAMS + 1], margin, wrap)
@@ -311,7 +311,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # spacing (no person; a mixed return at an edge, a thin pole)
         long = age >= cfg.forget_time - 1e-6
         thin = learn & nearer & ripe & ~lately & ~long
-        if np.logical_or.reduce(thin):
+        if any_of(thin):
             which = thin.nonzero()[0]
             thin[which] = _alone(r, which, reach, margin, wrap)
         # a beam hidden before it was learned (no background, never seen free) that returns
@@ -322,7 +322,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         hidden = learn & ~known & ~free
         if tracked is not None:
             hidden &= ~tracked
-        if np.logical_or.reduce(hidden):
+        if any_of(hidden):
             hidden = _continues(r, b, hidden, reach, margin, wrap)
         promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
         second = learn & ripe & lately & ~promote

@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from ..ggiw import einsum, inv2, Mixture, quad_form2
-from ..memo import constants, HALF, lean_init, ONE, TWO, ZERO
+from ..memo import any_of, constants, HALF, lean_init, ONE, TWO, ZERO
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
@@ -142,7 +142,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # just below the bearing or the one above it (where an empty interval's lo points),
     # whichever is nearer
     empty = hi <= lo
-    if np.logical_or.reduce(empty):
+    if any_of(empty):
         e = empty.nonzero()[0]
         up = np.minimum(lo[e], len(ang) - 1)
         down = np.maximum(up - 1, 0)
@@ -400,7 +400,7 @@ def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
                                                   births.P[maybe], 0.0, 0.0)
     at_sensor = _holds_sensor(births.m[maybe], extent[maybe])
     low = _expects_too_few(rate[maybe], half, step, det.min_fill)
-    if np.logical_or.reduce(low):
+    if any_of(low):
         rows = low.nonzero()[0]
         plain, _ = _visible_fraction(scan.in_scan_frame(bearing[rows]), half[rows],
                                      r_near[rows], scan, scan.ranges, det.shadow_margin,
@@ -431,7 +431,7 @@ def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndar
     line, where the side's thin extent holds it to centimetres, and the track's velocity
     turned off the car's heading until the gate let go of its returns.
     """
-    if not np.logical_or.reduce(shift != ZERO):
+    if not any_of(shift != ZERO):
         # nothing part hidden (most scans): the offsets are all 0 without the products
         return np.zeros((len(shift), 2))
     Xu = einsum('kij,kj->ki', X, u)
