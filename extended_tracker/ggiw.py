@@ -21,7 +21,7 @@ from scipy.special import gammaln
 
 from .memo import (
     all_of, cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE,
-    QUARTER, read_only, TWO,
+    QUARTER, read_only, row_index, TWO,
 )
 
 try:
@@ -77,8 +77,10 @@ class Mixture:
 
     def take(self, idx) -> 'Mixture':
         """Return the components at ``idx`` (index array or boolean mask)."""
-        return Mixture(self.w[idx], self.alpha[idx], self.beta[idx], self.m[idx], self.P[idx],
-                       self.v[idx], self.V[idx], self.label[idx])
+        # rows of the matrix fields by take (memo.row_index), of the 1-D ones by indexing
+        idx = row_index(idx, len(self.w))
+        return Mixture(self.w[idx], self.alpha[idx], self.beta[idx], self.m.take(idx, 0),
+                       self.P.take(idx, 0), self.v[idx], self.V.take(idx, 0), self.label[idx])
 
     def with_weights(self, w) -> 'Mixture':
         """Return a copy with new weights."""
@@ -459,8 +461,10 @@ class PairUpdate:
 
     def take(self, idx) -> 'PairUpdate':
         """The pairs at ``idx`` (index array, slice or boolean mask)."""
-        return PairUpdate(self.log_lik[idx], self.alpha[idx], self.beta[idx], self.m[idx],
-                          self.P[idx], self.v[idx], self.V[idx])
+        idx = row_index(idx, len(self.log_lik))                # as in Mixture.take
+        return PairUpdate(self.log_lik[idx], self.alpha[idx], self.beta[idx],
+                          self.m.take(idx, 0), self.P.take(idx, 0), self.v[idx],
+                          self.V.take(idx, 0))
 
     def mixture(self, w, label) -> Mixture:
         """The updated components as a mixture with weights ``w`` and labels ``label``."""
@@ -520,15 +524,16 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
         return PairUpdate(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 4)),
                           np.zeros((0, 4, 4)), np.zeros(0), np.zeros((0, 2, 2)))
     n = stats.n[cell].astype(float)
-    zbar = stats.mean[cell]
-    Z = stats.scatter[cell]
+    # rows of the matrix arrays by take (memo.row_index)
+    zbar = stats.mean.take(cell, 0)
+    Z = stats.scatter.take(cell, 0)
     alpha = mix.alpha[comp]
     beta = mix.beta[comp]
     f = ONE if rate_scale is None else rate_scale[comp]
-    m = mix.m[comp]
-    P = mix.P[comp]
+    m = mix.m.take(comp, 0)
+    P = mix.P.take(comp, 0)
     v = mix.v[comp]
-    V = mix.V[comp]
+    V = mix.V.take(comp, 0)
 
     X = V / (v - _IW)[:, None, None]
     Y = rho * X + R

@@ -65,6 +65,26 @@ def all_of(a: np.ndarray) -> bool:
     return _count_nonzero(a) == a.size
 
 
+def row_index(idx, n: int) -> np.ndarray:
+    """
+    ``idx`` (an index array or list, a boolean mask over ``n`` rows, or a slice) as an
+    index array, for ``a.take(rows, axis=0)``.
+
+    Gathering rows of (n, 4, 4) arrays by ``take`` costs about 3300 instructions where
+    fancy indexing costs 10 000 (12 000 with a boolean mask); the per-scan containers
+    gather six to eight such fields at a time. A mask of another length than ``n`` is an
+    IndexError, as fancy indexing with it would be.
+    """
+    if isinstance(idx, slice):
+        return np.arange(n)[idx]
+    idx = np.asarray(idx)
+    if idx.dtype == bool:
+        if idx.shape != (n,):
+            raise IndexError(f'boolean index of shape {idx.shape} for {n} rows')
+        return idx.nonzero()[0]
+    return idx
+
+
 def any_of(a: np.ndarray) -> bool:
     """Whether some element of the array ``a`` is true (``a.any()``'s value, counted as in
     :func:`all_of`)."""

@@ -14,7 +14,7 @@ import numpy as np
 
 from .config import ExtractionConfig, TrackerConfig
 from .ggiw import eig2, Mixture
-from .memo import cached_attribute, lean_init, read_only
+from .memo import cached_attribute, lean_init, read_only, row_index
 
 NEG_INF = -np.inf
 NO_LABELS = read_only(np.zeros(0, np.int64))[0]
@@ -52,9 +52,10 @@ class Estimates:
 
     def take(self, idx) -> 'Estimates':
         """The objects at ``idx`` (index array or boolean mask)."""
-        return Estimates(self.label[idx], self.existence[idx], self.m[idx], self.P[idx],
-                         self.X[idx], self.rate[idx], self.num_detections[idx],
-                         self.visibility[idx])
+        idx = row_index(idx, len(self.label))             # as in Mixture.take
+        return Estimates(self.label[idx], self.existence[idx], self.m.take(idx, 0),
+                         self.P.take(idx, 0), self.X.take(idx, 0), self.rate[idx],
+                         self.num_detections[idx], self.visibility[idx])
 
     def axes(self):
         """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""

@@ -198,3 +198,27 @@ def test_all_of_and_any_of_give_all_and_any():
         if a.ndim == 1:
             assert all_of(a) == bool(np.logical_and.reduce(a))
             assert any_of(a) == bool(np.logical_or.reduce(a))
+
+
+def test_take_by_row_index_gathers_what_fancy_indexing_gathers():
+    """Mixture.take (and the other containers' take) gather the matrix fields by
+    ``ndarray.take`` on memo.row_index: the same rows as indexing every field with
+    ``idx``, for index arrays, lists, negative indices, boolean masks and slices; a mask
+    of the wrong length is an IndexError as with indexing."""
+    from extended_tracker.memo import row_index
+
+    mix = _mixture()
+    for idx in [np.array([2, 0]), [1], np.array([-1, 0, 0]), np.zeros(0, np.int64),
+                np.array([True, False, True]), np.zeros(3, bool), slice(1, None),
+                slice(None, None, -1)]:
+        got = mix.take(idx)
+        for f in dataclasses.fields(mix):
+            want = getattr(mix, f.name)[idx]
+            assert np.array_equal(getattr(got, f.name), want)
+            assert getattr(got, f.name).dtype == want.dtype
+        assert np.array_equal(np.arange(3)[row_index(idx, 3)], np.arange(3)[idx])
+    est = Estimates.empty()
+    assert len(est.take(np.zeros(0, bool))) == 0
+    for bad in (np.array([True, False]), np.ones(4, bool)):
+        with pytest.raises(IndexError):
+            mix.take(bad)
