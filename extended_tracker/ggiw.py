@@ -116,9 +116,10 @@ class Mixture:
         """
         if idx is None:
             return self._extent
+        idx = row_index(idx, len(self.w))                  # rows by take, as in take
         if '_extent' in self.__dict__:
-            return self._extent[idx]
-        return self.V[idx] / (self.v[idx] - _IW)[:, None, None]
+            return self._extent.take(idx, 0)
+        return self.V.take(idx, 0) / (self.v[idx] - _IW)[:, None, None]
 
     @cached_attribute
     def _extent(self):

@@ -234,10 +234,10 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     w = mix.w[idx]
     W = np.add.reduceat(w, starts)
     wn = w / W[gid]
-    m_i = mix.m[idx]
+    m_i = mix.m.take(idx, 0)              # rows of matrix fields by take (memo.row_index)
     m = np.add.reduceat(wn[:, None] * m_i, starts)
-    dm = m_i - m[gid]
-    P = np.add.reduceat(wn[:, None, None] * (mix.P[idx] + dm[:, :, None] * dm[:, None, :]),
+    dm = m_i - m.take(gid, 0)
+    P = np.add.reduceat(wn[:, None, None] * (mix.P.take(idx, 0) + dm[:, :, None] * dm[:, None, :]),
                         starts)
     # Gamma: log a - digamma(a) = log E[g] - E[log g] =: c
     al, be = mix.alpha[idx], mix.beta[idx]
@@ -255,7 +255,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
             break
     b = a / mean
     # inverse Wishart
-    V_i = mix.V[idx]
+    V_i = mix.V.take(idx, 0)
     nu_i = mix.v[idx] - _3                # v - d - 1, exact: v > 6
     wnu = wn * nu_i
     Psi = np.add.reduceat(wnu[:, None, None] * inv2(V_i), starts)
@@ -311,8 +311,10 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     n_groups = int(gid[-1]) + 1
     heads = order[first]
     head = heads[gid]                                  # heaviest of each member's label
-    e = mix.m[order, :2] - mix.m[head, :2]
-    d2 = einsum('ki,kij,kj->k', e, inv2(mix.P[heads, :2, :2])[gid], e)
+    # rows of matrix fields by take (index arrays here; memo.row_index)
+    pos = mix.m[:, :2]
+    e = pos.take(order, 0) - pos.take(head, 0)
+    d2 = einsum('ki,kij,kj->k', e, inv2(mix.P.take(heads, 0)[:, :2, :2]).take(gid, 0), e)
     # per label, a handful of them: its members (heaviest first), whether one lies beyond
     # the merge distance, and whether one has 1 % of the head's weight or more (lighter
     # members move it by less than that: their weight is added to the head instead of a
@@ -364,8 +366,8 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     w = mix.w[rows]
     if absorbed:
         w[len(kept):] = absorbed_w
-    merged = Mixture(w, mix.alpha[rows], mix.beta[rows], mix.m[rows], mix.P[rows],
-                     mix.v[rows], mix.V[rows], mix.label[rows])
+    merged = Mixture(w, mix.alpha[rows], mix.beta[rows], mix.m.take(rows, 0),
+                     mix.P.take(rows, 0), mix.v[rows], mix.V.take(rows, 0), mix.label[rows])
     if multi:
         merged = Mixture.concat([merged, merge_groups(mix, multi)])
     capped = 0

@@ -118,9 +118,11 @@ def _gates(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
     if not len(best):
         return inv2(G), None
     n = len(mix)
-    inverses = inv2(np.concatenate([G, mix.P[best, :2, :2] + mix.expected_extent(best) + R]))
+    # rows of matrix fields by take (index arrays here; memo.row_index)
+    inverses = inv2(np.concatenate([G, mix.P.take(best, 0)[:, :2, :2]
+                                    + mix.expected_extent(best) + R]))
     return inverses[:n], {
-        'centre': mix.m[best, :2],
+        'centre': mix.m.take(best, 0)[:, :2],
         'gate_inv': inverses[n:],
         'gate': np.array(gate_threshold(cfg)),       # an array operand (memo.constants)
         'rate': mix.expected_rate()[best],
@@ -695,7 +697,7 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
 def _spread_inv(mix: Mixture, idx) -> np.ndarray:
     """Inverse of position covariance plus expected extent of components ``idx``: the
     metric in which a label's members are near their head (splitting, fusion)."""
-    return inv2(mix.P[idx, :2, :2] + mix.expected_extent(idx))
+    return inv2(mix.P.take(idx, 0)[:, :2, :2] + mix.expected_extent(idx))
 
 
 def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: float,
@@ -747,7 +749,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         return mix, 0
     cand = np.array(cand, dtype=np.int64)
     heads = order[is_head][cand]
-    c = mix.m[heads, :2]
+    c = mix.m.take(heads, 0)[:, :2]
     inv_spread = _spread_inv(mix, heads)
     e = c[None, :, :] - c[:, None, :]                  # e[i, j] = c_j - c_i
     d2 = einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
@@ -801,8 +803,9 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     if all_of(is_head):
         return mix, next_label                         # one component a label (most scans)
     heads = order[is_head]
-    e = mix.m[order, :2] - mix.m[heads[group], :2]
-    d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
+    pos = mix.m[:, :2]
+    e = pos.take(order, 0) - pos.take(heads[group], 0)
+    d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads).take(group, 0), e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
     if not any_of(far):
@@ -851,8 +854,8 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     return Estimates(
         label=chosen,
         existence=np.minimum(np.maximum(lab_w, ZERO), ONE),
-        m=mix.m[best],
-        P=mix.P[best],
+        m=mix.m.take(best, 0),
+        P=mix.P.take(best, 0),
         X=mix.expected_extent(best),
         rate=mix.expected_rate()[best],
         num_detections=np.array([n_det.get(x, 0) for x in reported], dtype=np.int64),
