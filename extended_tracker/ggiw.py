@@ -20,7 +20,7 @@ import numpy as np
 from scipy.special import gammaln
 
 from .memo import (
-    all_of, cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE,
+    all_of, cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE, ONE_I,
     QUARTER, read_only, row_index, TWO,
 )
 
@@ -176,7 +176,7 @@ class Mixture:
             is_head.fill(True)                     # np.ones: 8500 instructions, this 3000
             return read_only(order, is_head, np.arange(n))
         order, is_head = group_heads(self.label, -weight_key(self.w))
-        return read_only(order, is_head, is_head.cumsum() - 1)
+        return read_only(order, is_head, is_head.cumsum() - ONE_I)
 
 
 def group_heads(group: np.ndarray, key: np.ndarray):

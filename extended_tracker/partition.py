@@ -177,7 +177,8 @@ def _groups(labels: np.ndarray) -> list:
     """The cells of a label array: index arrays in ascending label order, each ascending."""
     order = labels.argsort(kind='stable')
     lab = labels[order]
-    cuts = [0, *((lab[1:] != lab[:-1]).nonzero()[0] + 1).tolist(), len(order)]
+    # the + 1 in Python: a handful of cuts, where an array operation costs 4000 instructions
+    cuts = [0, *[i + 1 for i in (lab[1:] != lab[:-1]).nonzero()[0].tolist()], len(order)]
     # slices, not np.split: its per-piece Python wrapper cost 20 us per partition
     return [order[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
 

@@ -147,11 +147,11 @@ def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
     P0, V0 = _birth_row(area, b.velocity_std, b.extent_semi_axis, b.dof)
     m = np.zeros((k, 4))
     m[:, :2] = stats.mean
-    v = filled(k, b.dof)
-    alpha = filled(k, b.rate_shape)
-    beta = alpha / b.expected_rate
-    return Mixture(filled(k, 1.0), alpha, beta, m, P0.repeat(k, axis=0), v, V0.repeat(k, axis=0),
-                   np.zeros(k, dtype=np.int64))
+    # beta as rate_shape / expected_rate once, in Python: the same double as dividing
+    # every alpha by expected_rate
+    alpha, beta = filled(k, b.rate_shape), filled(k, b.rate_shape / b.expected_rate)
+    return Mixture(filled(k, 1.0), alpha, beta, m, P0.repeat(k, axis=0), filled(k, b.dof),
+                   V0.repeat(k, axis=0), np.zeros(k, dtype=np.int64))
 
 
 @cached_tables(maxsize=16)             # constant while the field of view and config are
