@@ -364,13 +364,14 @@ def remember_shown(old: FilterState, new: FilterState, shown: Estimates,
                       shown_vel=shown.m[:, 2:].copy(), shown_elapsed=np.zeros(len(shown)),
                       label_clock=clock)
     keep = np.array(keep, dtype=np.int64)
+    # rows of the (r, 2) arrays by take (memo.row_index)
     label = np.concatenate([old.shown[keep], shown.label])
-    pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
-    vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
+    pos = np.concatenate([old.shown_pos.take(keep, 0), shown.m[:, :2]])
+    vel = np.concatenate([old.shown_vel.take(keep, 0), shown.m[:, 2:]])
     elapsed = np.concatenate([old.shown_elapsed[keep] + dt, np.zeros(len(shown))])
     order = label.argsort(kind='stable')
-    return evolve(new, shown=label[order], shown_pos=pos[order], shown_vel=vel[order],
-                  shown_elapsed=elapsed[order], label_clock=clock)
+    return evolve(new, shown=label[order], shown_pos=pos.take(order, 0),
+                  shown_vel=vel.take(order, 0), shown_elapsed=elapsed[order], label_clock=clock)
 
 
 def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):
