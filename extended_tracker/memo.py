@@ -1,6 +1,8 @@
 """
-Read-only shared arrays, the memoising decorator of the filter's constant tables, and a
-lean ``dataclasses.replace`` for the per-scan state objects.
+Read-only shared arrays, the memoising decorator of the filter's constant tables, a lean
+``dataclasses.replace`` and ``__init__`` for the per-scan state objects, and cheaper
+stand-ins for numpy calls a scan makes dozens of times on arrays of a few elements (0-d
+constants, truth tests, row gathers), each held to what it replaces by the tests.
 
 Kept apart from the GGIW module: the CPHD update, which takes no GGIW detail, uses it too.
 """
