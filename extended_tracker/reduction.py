@@ -237,8 +237,8 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     m_i = mix.m.take(idx, 0)              # rows of matrix fields by take (memo.row_index)
     m = np.add.reduceat(wn[:, None] * m_i, starts)
     dm = m_i - m.take(gid, 0)
-    P = np.add.reduceat(wn[:, None, None] * (mix.P.take(idx, 0) + dm[:, :, None] * dm[:, None, :]),
-                        starts)
+    spread = mix.P.take(idx, 0) + dm[:, :, None] * dm[:, None, :]
+    P = np.add.reduceat(wn[:, None, None] * spread, starts)
     # Gamma: log a - digamma(a) = log E[g] - E[log g] =: c
     al, be = mix.alpha[idx], mix.beta[idx]
     mean = np.add.reduceat(wn * al / be, starts)
