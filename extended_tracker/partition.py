@@ -95,7 +95,7 @@ class PartitionSet:
         prev = None
         for labels in partitions:
             if prev is None:
-                current = {int(labels[g[0]]): [g, None] for g in _groups(labels)}
+                current = {r: [g, None] for r, g in zip(*_groups(labels, with_labels=True))}
                 fresh = list(current)
             else:
                 moved = labels != prev
@@ -173,14 +173,22 @@ class PartitionSet:
         return True
 
 
-def _groups(labels: np.ndarray) -> list:
-    """The cells of a label array: index arrays in ascending label order, each ascending."""
+def _groups(labels: np.ndarray, with_labels: bool = False):
+    """
+    The cells of a label array: index arrays in ascending label order, each ascending;
+    with ``with_labels``, ``(labels, cells)``, each cell's label as a Python int.
+    """
     order = labels.argsort(kind='stable')
     lab = labels[order]
     # the + 1 in Python: a handful of cuts, where an array operation costs 4000 instructions
     cuts = [0, *[i + 1 for i in (lab[1:] != lab[:-1]).nonzero()[0].tolist()], len(order)]
     # slices, not np.split: its per-piece Python wrapper cost 20 us per partition
-    return [order[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
+    cells = [order[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
+    if not with_labels:
+        return cells
+    # the labels from one list, not a numpy scalar read per cell (1200 instructions each)
+    lab = lab.tolist()
+    return [lab[a] for a in cuts[:-1]], cells
 
 
 def single_linkage(y: np.ndarray, n: int) -> np.ndarray:
@@ -480,22 +488,27 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
         centres = np.array(init, dtype=float)
     labels = np.zeros(n, dtype=np.int64)
     # squares as products (x ** 2 is x * x in numpy, bit for bit, but a Python operand
-    # costs each call more than the arithmetic here)
+    # costs each call more than the arithmetic here); the centres' coordinates as arrays
+    # of their own, not columns of a (k, 2) array rebuilt each iteration
     x_col, y_col = x[:, None], y[:, None]
+    k = len(centres)
+    cx, cy = centres[:, 0], centres[:, 1]
     for _ in range(iters):
-        dx, dy = x_col - centres[:, 0], y_col - centres[:, 1]
+        dx, dy = x_col - cx, y_col - cy
         new = (dx * dx + dy * dy).argmin(axis=1)
         if _ and all_of(new == labels):       # not array_equal's wrapper
             break
         labels = new
         # each centre moves to the mean of its points; an empty cluster's centre stays
-        count = np.bincount(labels, minlength=len(centres))
-        sums = _sums_by(labels, points, len(centres))
+        count = np.bincount(labels, minlength=k)
+        sx = np.bincount(labels, weights=x, minlength=k)
+        sy = np.bincount(labels, weights=y, minlength=k)
         filled = count > ZERO_I
         if all_of(filled):
-            centres = sums / count[:, None]
+            cx, cy = sx / count, sy / count
         else:
-            centres[filled] = sums[filled] / count[filled, None]
+            cx[filled] = sx[filled] / count[filled]
+            cy[filled] = sy[filled] / count[filled]
     return labels
 
 
