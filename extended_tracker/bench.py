@@ -308,11 +308,19 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
     cfg = from_dict({'background': {'enabled': False}})
     n_runs = max(1, scans // run_scans)
     peds4 = _pedestrian_runs(4, n_runs, run_scans, warm)
+    # the detection counts as well: 4 pedestrians at 481 beams give some 60
+    # returns (46 at 361), 10 at 1441 beams over 270 degrees some 250 (194 at 1081)
+    peds4_60 = _pedestrian_runs(4, n_runs, run_scans, warm, beams=481)
     wide10 = _pedestrian_runs(10, n_runs, run_scans, warm, beams=1081, fov_deg=270.0)
+    wide10_250 = _pedestrian_runs(10, n_runs, run_scans, warm, beams=1441, fov_deg=270.0)
     cases = [('filter step, 4 pedestrians, 361 beams',
               lambda: _filter_times(peds4, cfg, warm)[0], 1.5, None),
+             ('filter step, 4 pedestrians, 481 beams',
+              lambda: _filter_times(peds4_60, cfg, warm)[0], 1.5, None),
              ('filter step, 10 pedestrians, 1081 beams',
-              lambda: _filter_times(wide10, cfg, warm)[0], 5.0, None)]
+              lambda: _filter_times(wide10, cfg, warm)[0], 5.0, None),
+             ('filter step, 10 pedestrians, 1441 beams',
+              lambda: _filter_times(wide10_250, cfg, warm)[0], 5.0, None)]
     for (name, _, c, data), (med_t, p99_t) in zip(_pipeline_cases(scans),
                                                   [(2.0, 6.0), (6.0, 20.0), (None, 25.0)]):
         cases.append((name, lambda data=data, c=c: _pipeline_times(data, c)[0], med_t, p99_t))

@@ -68,21 +68,23 @@ def test_target_rounds_report_every_case(capsys):
     out = capsys.readouterr().out
     assert 'targets, 2 interleaved rounds' in out
     for name in ('filter step, 4 pedestrians, 361 beams',
-                 'filter step, 10 pedestrians, 1081 beams', 'S1 tutorial-like', 'S2 car',
+                 'filter step, 4 pedestrians, 481 beams',
+                 'filter step, 10 pedestrians, 1081 beams',
+                 'filter step, 10 pedestrians, 1441 beams', 'S1 tutorial-like', 'S2 car',
                  'S3 stress'):
         line = next(row for row in out.splitlines() if row.startswith(name))
         assert line.rstrip().endswith(('0/2', '1/2', '2/2')), line
     # two rounds of one run's 10 steps after its 2 warm-up steps, and of the 10 scans
     # after the pipeline's 2 s of warm-up
-    assert [len(t) for t in pooled.values()] == [20, 20, 20, 20, 20]
+    assert [len(t) for t in pooled.values()] == [20] * 7
     # each round's line: its yardstick, then its median of every case (one of which is
     # the table's low or high end of the rounds' medians)
     rounds = [row.split() for row in out.splitlines() if row.startswith('  round ')]
     assert [r[:2] for r in rounds] == [['round', '1'], ['round', '2']]
-    assert all(r[3] == '|' and len(r) == 4 + 5 for r in rounds)
+    assert all(r[3] == '|' and len(r) == 4 + 7 for r in rounds)
     line = next(row for row in out.splitlines() if row.startswith('S1 tutorial-like'))
     lo, hi = next(t for t in line.split() if re.fullmatch(r'[\d.]+-[\d.]+', t)).split('-')
-    assert sorted([rounds[0][6], rounds[1][6]]) == [lo, hi]
+    assert sorted([rounds[0][8], rounds[1][8]]) == [lo, hi]
 
 
 def test_machine_line_and_yardstick():
@@ -258,10 +260,10 @@ def test_a_round_meets_a_case_when_its_median_and_its_p99_are_both_within_target
         (f'{key} case', None, None, key) for key in ('S1', 'S2', 'S3')])
     monkeypatch.setattr(bench, '_pipeline_times', lambda data, cfg: (times(data), []))
     pooled = bench.bench_targets(rounds=2)
-    assert [len(t) for t in pooled.values()] == [200] * 5
+    assert [len(t) for t in pooled.values()] == [200] * 7
     rows = [row.split() for row in capsys.readouterr().out.splitlines()
             if row.startswith(('filter step', 'S1 case', 'S2 case', 'S3 case'))]
-    assert [r[-1] for r in rows] == ['2/2', '0/2', '0/2', '2/2', '0/2']
+    assert [r[-1] for r in rows] == ['2/2', '2/2', '0/2', '0/2', '0/2', '2/2', '0/2']
     s1 = next(r for r in rows if r[0] == 'S1')
     assert s1[2:6] == ['1.90', '6.50', '1.90-1.90', '2']
     assert next(r for r in rows if r[0] == 'S3')[4:8] == ['10.00-10.00', '-', '/', '25']
