@@ -642,8 +642,17 @@ def gate_pairs(mix: Mixture, stats: CellStats, rho: float, R: np.ndarray, thresh
 def gate_distance2(mix: Mixture, z: np.ndarray, gate_inv: np.ndarray) -> np.ndarray:
     """(n, k) squared gate distance of each of the points ``z`` (k, 2) from each component's
     predicted position, ``gate_inv`` the inverse of :func:`gate_covariance`."""
+    return centre_distance2(mix.m, gate_inv, z)
+
+
+def centre_distance2(centre: np.ndarray, metric: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """
+    (n, k) squared distance of each of the points ``z`` (k, 2) from each of the ``centre``
+    rows (n, >= 2; the first two columns are the position), each in its own ``metric``
+    (n, 2, 2, symmetric): gating here and partitioning's distances to the predictions.
+    """
     # on (n, k) arrays of the coordinates and (n, 1) columns of the matrices rather than
     # broadcast views of (n, k, 2) and (n, 1, 2, 2)
-    g = gate_inv
-    return quad_form2_xy(z[:, 0] - mix.m[:, :1], z[:, 1] - mix.m[:, 1:2],
+    g = metric
+    return quad_form2_xy(z[:, 0] - centre[:, :1], z[:, 1] - centre[:, 1:2],
                          g[:, :1, 0], g[:, :1, 1], g[:, 1:, 1])

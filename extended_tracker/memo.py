@@ -60,9 +60,9 @@ def all_of(a: np.ndarray) -> bool:
     Whether every element of the array ``a`` is true (``True`` when it is empty).
 
     For a 1-D ``a``, ``np.logical_and.reduce(a)``'s value (``a.all()``'s for any shape):
-    a count of the nonzero elements takes about
-    1600 instructions where the reduction's set-up takes 7300 (or ``a.all()``'s 8000),
-    on the dozens of arrays of a few elements a scan tests.
+    a count of the nonzero elements takes about 1600 instructions where the reduction's
+    set-up takes 7300 (or ``a.all()``'s 8000), on the dozens of arrays of a few elements a
+    scan tests.
     """
     return _count_nonzero(a) == a.size
 
