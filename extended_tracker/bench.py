@@ -93,7 +93,7 @@ def reference_ms(reps: int = 15) -> float:
         t0 = time.perf_counter()
         for _ in range(100):
             c = np.exp(a - b)
-            s = np.add.reduce(c)
+            s = np.sum(c)
             m = np.maximum(a, b)
             order = m.argsort()
             d = c[order] * s

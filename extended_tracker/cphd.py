@@ -25,8 +25,8 @@ import math
 import numpy as np
 from scipy.special import gammaln
 
-from .memo import cached_tables, lean_init
-from .logmath import logsumexp, lse1, lse_last, neg_inf
+from .logmath import logsumexp, lse1, lse_last
+from .tables import cached_tables
 
 NEG_INF = -np.inf
 # partitions are split into three batches by active singletons from these sizes on
@@ -34,7 +34,6 @@ BATCH_MIN_PARTITIONS = 6
 BATCH_MIN_SINGLETONS = 12
 
 
-@lean_init
 @dataclass(frozen=True)
 class UpdateWeights:
     """
@@ -76,7 +75,7 @@ def poisson_log_pmf(mean: float, n_max: int) -> np.ndarray:
     """Log Poisson pmf at ``0..n_max`` (untruncated values)."""
     n = np.arange(n_max + 1)
     if mean <= 0:
-        out = neg_inf(n_max + 1)
+        out = np.full(n_max + 1, -np.inf)
         out[0] = 0.0
         return out
     return n * np.log(mean) - mean - _log_factorial(n_max)
@@ -141,7 +140,7 @@ def log_esf_prefixes(log_a: np.ndarray) -> np.ndarray:
 
     """
     p, k = log_a.shape
-    pre = neg_inf((k + 1, p, k + 1))
+    pre = np.full((k + 1, p, k + 1), -np.inf)
     pre[:, :, 0] = 0.0
     for t in range(k):
         pre[t + 1, :, 1:] = np.logaddexp(pre[t, :, 1:], pre[t, :, :-1] + log_a[:, t:t + 1])
@@ -175,7 +174,7 @@ def leave_one_out_sums(pre: np.ndarray, log_a: np.ndarray, log_b: np.ndarray) ->
 
     """
     p, k = log_a.shape
-    g = neg_inf((k + 1, p, k + 1))               # g[j] = G_j, padded by one column
+    g = np.full((k + 1, p, k + 1), -np.inf)               # g[j] = G_j, padded by one column
     g[k, :, :k] = log_b
     for j in range(k - 1, 0, -1):
         g[j, :, :k] = np.logaddexp(g[j + 1, :, :k], log_a[:, j:j + 1] + g[j + 1, :, 1:])
@@ -260,7 +259,7 @@ def esf_terms(log_a: np.ndarray, log_b: np.ndarray | None, min_work: int = LINEA
         G[k, :, :k] = np.exp(log_c - cm[:, None])
         for j in range(k - 1, 0, -1):
             np.add(G[j + 1, :, :k], b[:, j:j + 1] * G[j + 1, :, 1:], out=G[j, :, :k])
-        loo = np.log(np.add.reduce(E[:k, :, :k] * G[1:, :, :k], axis=2).T) + cm[:, None]
+        loo = np.log(np.sum(E[:k, :, :k] * G[1:, :, :k], axis=2).T) + cm[:, None]
     return log_e, loo
 
 
@@ -292,7 +291,7 @@ def _esf_two(log_a: np.ndarray, log_b: np.ndarray | None):
 def _inf_padded(table: np.ndarray, pad: int) -> np.ndarray:
     """``table`` with ``pad`` entries of ``-inf`` on each side: ``out[i + pad]`` is
     ``table[i]`` for ``i`` in range and ``-inf`` for ``-pad <= i < len(table) + pad``."""
-    out = neg_inf(len(table) + 2 * pad)
+    out = np.full(len(table) + 2 * pad, -np.inf)
     out[pad:pad + len(table)] = table
     return out
 
@@ -304,7 +303,7 @@ def _sum_tables(T: np.ndarray, W1: np.ndarray, pad: int) -> np.ndarray:
     ``T[n, j]``, row ``N_max + 1`` is ``W1[j]`` and row ``N_max + 2`` is ``W1[j - 1]``.
     """
     n_rows, width = T.shape
-    out = neg_inf((n_rows + 2, width + 2 * pad))
+    out = np.full((n_rows + 2, width + 2 * pad), -np.inf)
     out[:n_rows, pad:pad + width] = T
     out[n_rows, pad:pad + width] = W1
     out[n_rows + 1, pad + 1:pad + 1 + width] = W1
@@ -476,7 +475,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
         # no predicted objects: only clutter explains the scan
         log_nbar = 0.0
         log_q0 = 0.0
-        log_psi = neg_inf(n_cells)
+        log_psi = np.full(n_cells, -np.inf)
     else:
         log_q0 = float(sums[1]) - log_nbar
         log_psi = sums[2:] - sums[0, ...]      # log_nbar, as a 0-d operand
@@ -497,7 +496,7 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     # W1[j] = log sum_{n>=1} n p(n) n'!/(n'-j)! q0^{n'-j} at n' = n - 1: folds the n-sum of
     # every Upsilon into one table, so each partition and cell costs a scalar logsumexp.
     W1 = lse_last((log_n[1:, None] + log_card[1:, None] + T[:-1, :]).T)
-    log_u_cell = neg_inf(n_cells)
+    log_u_cell = np.full(n_cells, -np.inf)
     ka = [len(q[3]) for q in parts]
     R = max(ka)
     pad = R + 1
@@ -507,8 +506,8 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     # there are many): a batch costs its size times its largest count squared, so
     # padding a 5-singleton partition to 55 would waste most of the work.
     if n_part >= BATCH_MIN_PARTITIONS and R >= BATCH_MIN_SINGLETONS:
-        lam_P = neg_inf((n_part, n_max + 1))
-        u0_terms = neg_inf(n_part)
+        lam_P = np.full((n_part, n_max + 1), -np.inf)
+        u0_terms = np.full(n_part, -np.inf)
         ka = np.array(ka)
         bucket = np.quantile(ka, [1 / 3, 2 / 3]).searchsorted(ka, side='left')
         for b in np.unique(bucket).tolist():
@@ -525,11 +524,10 @@ def cphd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, log_car
     log_L = lse1(per_partition)
     if log_L == NEG_INF:
         return _prediction_stands(log_w, n_cells, log_card, n_part)
-    log_L_a = np.array(log_L)                   # a 0-d operand (memo.constants)
-    log_part_weight = per_partition - log_L_a
+    log_part_weight = per_partition - log_L
     log_u0 = lse1(u0_terms) - log_nbar - log_L
-    log_u_cell = log_u_cell - np.array(log_nbar) - log_L_a
-    log_card_post = log_card + lse_last(lam_P.T) - log_L_a
+    log_u_cell = log_u_cell - log_nbar - log_L
+    log_card_post = log_card + lse_last(lam_P.T) - log_L
 
     log_w_missed = log_w + log_qd + log_u0
     log_w_det = log_w[:, None] + log_g - cell_log_c[None, :] + log_u_cell[None, :]
@@ -557,7 +555,7 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
     if n_comp:
         log_sum = logsumexp(log_w[:, None] + log_g, axis=0) - log_lc
     else:
-        log_sum = neg_inf(n_cells)
+        log_sum = np.full(n_cells, -np.inf)
     clutter_only = cell_size == 1 if clutter_cells is None else (cell_size == 1) | clutter_cells
     log_d = np.logaddexp(np.where(clutter_only, 0.0, NEG_INF), log_sum)
     log_omega = np.array([np.sum(log_d[np.asarray(c)]) for c in partitions])
@@ -566,7 +564,7 @@ def phd_update(log_w, log_qd, log_g, cell_log_c, cell_size, partitions, clutter_
         card = poisson_log_pmf(float(np.exp(logsumexp(log_w))) if n_comp else 0.0, n_max)
         return _prediction_stands(log_w, n_cells, card - logsumexp(card), len(partitions))
     log_omega = log_omega - log_total
-    log_cell_weight = neg_inf(n_cells)
+    log_cell_weight = np.full(n_cells, -np.inf)
     for lo, cells in zip(log_omega, partitions):
         cells = np.asarray(cells)
         log_cell_weight[cells] = np.logaddexp(log_cell_weight[cells], lo)
@@ -610,7 +608,7 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
     p_s = float(p_survival)
     n = _counts(n_max)
     if p_s <= 0.0:
-        p = np.concatenate([[np.add.reduce(p)], np.zeros(n_max)])
+        p = np.concatenate([[np.sum(p)], np.zeros(n_max)])
     elif p_s < 1.0:
         q_s = 1.0 - p_s
         if (n_max <= THIN_PRODUCT_MAX
@@ -626,11 +624,11 @@ def predict_cardinality(log_card: np.ndarray, p_survival: float, birth_mean: flo
         top = min(int(mean), n_max)                    # the largest mean^k / k! up to N_max
         if top * math.log(mean) - math.lgamma(top + 1) > 700.0:
             return _predict_cardinality_log(log_card, p_s, mean)
-        np.multiply.accumulate(mean / n[1:], out=birth[1:])      # np.cumprod, unwrapped
+        np.cumprod(mean / n[1:], out=birth[1:])
     else:
         birth[1:] = 0.0
     out = np.convolve(p, birth)[:n_max + 1]
-    total = np.add.reduce(out)
+    total = np.sum(out)
     if not (0.0 < total < np.inf):
         return _predict_cardinality_log(log_card, p_s, mean)
     with np.errstate(divide='ignore'):
@@ -724,7 +722,7 @@ def resize_cardinality(log_card: np.ndarray, n_max: int) -> np.ndarray:
     filter runs: padded with zeros, or truncated and renormalised (as the prediction drops
     the mass beyond ``N_max``); all at ``n_max`` if no mass was at or below it.
     """
-    out = neg_inf(n_max + 1)
+    out = np.full(n_max + 1, -np.inf)
     k = min(len(log_card), n_max + 1)
     out[:k] = log_card[:k]
     total = lse1(out)

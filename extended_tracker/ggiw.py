@@ -14,31 +14,20 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 from scipy.special import gammaln
 
-from .memo import (
-    all_of, cached_attribute, cached_tables, constants, evolve, HALF, lean_init, ONE, ONE_I,
-    QUARTER, read_only, row_index, TWO,
-)
+from .tables import cached_tables, read_only
 
-try:
-    # numpy's C einsum: np.einsum wraps it in Python only to offer ``optimize``, which
-    # these small contractions never use (about 1 us a call; a test holds them equal)
-    from numpy._core.multiarray import c_einsum as einsum
-except ImportError:                      # pragma: no cover - other numpy releases
-    einsum = np.einsum
 
 D = 2                     # extent dimension
 IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
 
-# the IW offsets as array constants (memo.constants): v - d - 1 is exact for v > 2d + 2
-_IW, _D1 = constants(IW_OFFSET, D + 1)
 
 
-@lean_init
 @dataclass(frozen=True)
 class Mixture:
     """
@@ -77,14 +66,12 @@ class Mixture:
 
     def take(self, idx) -> 'Mixture':
         """Return the components at ``idx`` (index array or boolean mask)."""
-        # rows of the matrix fields by take (memo.row_index), of the 1-D ones by indexing
-        idx = row_index(idx, len(self.w))
-        return Mixture(self.w[idx], self.alpha[idx], self.beta[idx], self.m.take(idx, 0),
-                       self.P.take(idx, 0), self.v[idx], self.V.take(idx, 0), self.label[idx])
+        return Mixture(self.w[idx], self.alpha[idx], self.beta[idx], self.m[idx],
+                       self.P[idx], self.v[idx], self.V[idx], self.label[idx])
 
     def with_weights(self, w) -> 'Mixture':
         """Return a copy with new weights."""
-        return evolve(self, w=np.asarray(w, dtype=float))
+        return replace(self, w=np.asarray(w, dtype=float))
 
     @staticmethod
     def empty() -> 'Mixture':
@@ -108,22 +95,14 @@ class Mixture:
                        cat([p.V for p in parts]), cat([p.label for p in parts]))
 
     def expected_extent(self, idx=None) -> np.ndarray:
-        """
-        Return ``E[X] = V / (v - 6)``, shape (n, 2, 2), or of the components ``idx``.
+        """Return ``E[X] = V / (v - 6)``, shape (n, 2, 2), or of the components ``idx``."""
+        return self._extent if idx is None else self._extent[idx]
 
-        The whole mixture's is computed once (gating, the p_D model and the plausibility
-        check all ask for it) and shared, so it is read-only.
-        """
-        if idx is None:
-            return self._extent
-        idx = row_index(idx, len(self.w))                  # rows by take, as in take
-        if '_extent' in self.__dict__:
-            return self._extent.take(idx, 0)
-        return self.V.take(idx, 0) / (self.v[idx] - _IW)[:, None, None]
-
-    @cached_attribute
+    @cached_property
     def _extent(self):
-        return read_only(self.V / (self.v - _IW)[:, None, None])[0]
+        # gating, the p_D model and the plausibility check all ask for it: computed once,
+        # shared, so read-only
+        return read_only(self.V / (self.v - IW_OFFSET)[:, None, None])[0]
 
     def expected_rate(self) -> np.ndarray:
         """Return ``E[gamma] = alpha / beta``, shape (n,)."""
@@ -157,26 +136,24 @@ class Mixture:
         """
         return self._per_label
 
-    @cached_attribute
+    @cached_property
     def _per_label(self):
         order, is_head, group = self.by_label()
         rank = np.empty(len(order), dtype=np.int64)
         rank[order] = group
         return read_only(self.label[order[is_head]], rank, np.bincount(rank, weights=self.w))
 
-    @cached_attribute
+    @cached_property
     def _by_label(self):
         order = self.label.argsort(kind='stable')
         lab = self.label[order]
-        if all_of(lab[1:] != lab[:-1]):
+        if np.all(lab[1:] != lab[:-1]):
             # one component a label (a predicted or reduced mixture, most scans): each is
             # its label's head, and the weights order nothing
             n = len(order)
-            is_head = np.empty(n, dtype=bool)
-            is_head.fill(True)                     # np.ones: 8500 instructions, this 3000
-            return read_only(order, is_head, np.arange(n))
+            return read_only(order, np.ones(n, dtype=bool), np.arange(n))
         order, is_head = group_heads(self.label, -weight_key(self.w))
-        return read_only(order, is_head, is_head.cumsum() - ONE_I)
+        return read_only(order, is_head, is_head.cumsum() - 1)
 
 
 def group_heads(group: np.ndarray, key: np.ndarray):
@@ -234,9 +211,9 @@ def eig2(A):
     ``tr/2 +- sqrt((a - c)^2 / 4 + b^2)``.
     """
     a, b, c = A[..., 0, 0], A[..., 0, 1], A[..., 1, 1]
-    half_tr = HALF * (a + c)
+    half_tr = 0.5 * (a + c)
     d = a - c                                  # squared as d * d: d ** 2's values, no
-    root = np.sqrt(QUARTER * (d * d) + b * b)  # Python operand; a sum of squares, >= 0
+    root = np.sqrt(0.25 * (d * d) + b * b)  # Python operand; a sum of squares, >= 0
     return half_tr + root, half_tr - root
 
 
@@ -248,7 +225,7 @@ def logdet_spd2(A):
     cancellation beyond that of the Schur complement itself.
     """
     a = A[..., 0, 0]
-    b = HALF * (A[..., 0, 1] + A[..., 1, 0])
+    b = 0.5 * (A[..., 0, 1] + A[..., 1, 0])
     schur = A[..., 1, 1] - b * b / a
     return np.log(a) + np.log(schur)
 
@@ -265,7 +242,7 @@ def sqrtm_spd2(A):
 
     """
     s = np.sqrt(det2(A))
-    t = np.sqrt(A[..., 0, 0] + A[..., 1, 1] + TWO * s)
+    t = np.sqrt(A[..., 0, 0] + A[..., 1, 1] + 2.0 * s)
     out = A.copy()
     out[..., 0, 0] += s
     out[..., 1, 1] += s
@@ -286,19 +263,18 @@ def quad_form2_xy(x, y, a, b, c):
     against each other: :func:`quad_form2` on arrays the caller lays out (contiguous
     coordinate arrays broadcast faster than views of stacked vectors and matrices).
     """
-    return a * (x * x) + TWO * b * x * y + c * (y * y)
+    return a * (x * x) + 2.0 * b * x * y + c * (y * y)
 
 
 def symmetrize(A):
     """Return ``(A + A^T) / 2`` over the last two axes."""
-    return HALF * (A + A.swapaxes(-1, -2))
+    return 0.5 * (A + A.swapaxes(-1, -2))
 
 
-# the bivariate log-gamma log Gamma_2(a) = (1/2) log pi + log Gamma(a) + log Gamma(a - 1/2)
-# (scipy.special.multigammaln(a, 2), which the update's reference test evaluates) is
-# written out in update_pairs, its log-gammas evaluated with the update's others
-_HALF_LOG_PI = np.array(0.5 * np.log(np.pi))
-_LOG_PI = TWO * _HALF_LOG_PI
+# log Gamma_2 (scipy.special.multigammaln(a, 2), which the reference test evaluates) is
+# written out in update_pairs
+_HALF_LOG_PI = 0.5 * np.log(np.pi)
+_LOG_PI = 2.0 * _HALF_LOG_PI
 
 
 # --- prediction (section 2) ---
@@ -334,11 +310,9 @@ def cv_matrices(dt: float, sigma_accel: float):
 FORGET_FLOOR = 1e-9      # least Gamma shape, and IW v - 6, that forgetting leaves
 
 
-@cached_tables(maxsize=256)            # scan periods jitter in recordings
-def _forgetting(dt: float, tau: float):
-    """``exp(-dt / tau)``, the factor a step of ``dt`` s keeps of a time constant ``tau``
-    (a 0-d array: an operand of the prediction's array arithmetic, memo.constants)."""
-    return np.array(np.exp(-dt / tau))
+def _forgetting(dt: float, tau: float) -> float:
+    """``exp(-dt / tau)``, the factor a step of ``dt`` s keeps of a time constant ``tau``."""
+    return np.exp(-dt / tau)
 
 
 def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_rate: float,
@@ -377,21 +351,20 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
     k_rate = _forgetting(dt, tau_rate)
     k_ext = _forgetting(dt, tau_extent)
     alpha, beta = mix.alpha * k_rate, mix.beta * k_rate
-    if np.minimum.reduce(alpha) < FORGET_FLOOR:
+    if np.min(alpha) < FORGET_FLOOR:
         low = alpha < FORGET_FLOOR
         beta = np.where(low, FORGET_FLOOR * (mix.beta / mix.alpha), beta)
         alpha = np.where(low, FORGET_FLOOR, alpha)
-    s = mix.v - _IW
-    v_new = _IW + k_ext * s
-    if np.minimum.reduce(v_new) < IW_OFFSET + FORGET_FLOOR:
+    s = mix.v - IW_OFFSET
+    v_new = IW_OFFSET + k_ext * s
+    if np.min(v_new) < IW_OFFSET + FORGET_FLOOR:
         v_new = np.maximum(v_new, IW_OFFSET + FORGET_FLOOR)
-    V_new = mix.V * ((v_new - _IW) / s)[:, None, None]
+    V_new = mix.V * ((v_new - IW_OFFSET) / s)[:, None, None]
     return Mixture(mix.w * p_survival ** dt, alpha, beta, m, P, v_new, V_new, mix.label)
 
 
 # --- update with one cell (section 3), batched over (component, cell) pairs ---
 
-@lean_init
 @dataclass(frozen=True)
 class CellStats:
     """
@@ -433,7 +406,7 @@ def cell_stats(points: np.ndarray, cells: list[np.ndarray],
     owner = np.arange(c).repeat(sizes)         # the method: np.repeat's wrapper costs more
     # the members' rows by take, the coordinates as views of them (indexing a column
     # with an index array costs three times as much)
-    rows = points.take(flat, 0)
+    rows = points[flat]
     x, y = rows[:, 0], rows[:, 1]
     # per-cell sums by bincount: the same sequential sums as np.add.at, without its cost
     mx = np.bincount(owner, weights=x, minlength=c) / sizes
@@ -451,7 +424,6 @@ def cell_stats(points: np.ndarray, cells: list[np.ndarray],
     return CellStats(sizes, mean, scatter, log_c)
 
 
-@lean_init
 @dataclass(frozen=True)
 class PairUpdate:
     """Posterior GGIW parameters and predicted log-likelihoods of (component, cell) pairs."""
@@ -466,10 +438,9 @@ class PairUpdate:
 
     def take(self, idx) -> 'PairUpdate':
         """The pairs at ``idx`` (index array, slice or boolean mask)."""
-        idx = row_index(idx, len(self.log_lik))                # as in Mixture.take
         return PairUpdate(self.log_lik[idx], self.alpha[idx], self.beta[idx],
-                          self.m.take(idx, 0), self.P.take(idx, 0), self.v[idx],
-                          self.V.take(idx, 0))
+                          self.m[idx], self.P[idx], self.v[idx],
+                          self.V[idx])
 
     def mixture(self, w, label) -> Mixture:
         """The updated components as a mixture with weights ``w`` and labels ``label``."""
@@ -524,46 +495,40 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
 
     """
     if not len(comp):
-        # a scan without returns (the background's warm-up, an empty scene): nothing to
-        # compute, and the batch below costs some 60 us of array calls on empty arrays
+        # a scan without returns (the background's warm-up, an empty scene)
         return PairUpdate(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 4)),
                           np.zeros((0, 4, 4)), np.zeros(0), np.zeros((0, 2, 2)))
     n = stats.n[cell].astype(float)
-    # rows of the matrix arrays by take (memo.row_index)
-    zbar = stats.mean.take(cell, 0)
-    Z = stats.scatter.take(cell, 0)
+    zbar = stats.mean[cell]
+    Z = stats.scatter[cell]
     alpha = mix.alpha[comp]
     beta = mix.beta[comp]
-    f = ONE if rate_scale is None else rate_scale[comp]
-    m = mix.m.take(comp, 0)
-    P = mix.P.take(comp, 0)
+    f = 1.0 if rate_scale is None else rate_scale[comp]
+    m = mix.m[comp]
+    P = mix.P[comp]
     v = mix.v[comp]
-    V = mix.V.take(comp, 0)
+    V = mix.V[comp]
 
-    X = V / (v - _IW)[:, None, None]
+    X = V / (v - IW_OFFSET)[:, None, None]
     Y = rho * X + R
     Ppos = P[:, :2, :2]
     S = Ppos + Y / n[:, None, None]
     if hidden is not None:
         h = hidden[comp]
         S = S + (h * h)[:, None, None] * X
-    # The 2x2 helpers work matrix by matrix, so the matrices they need go through them
-    # stacked: one call each instead of three or five (the same values, some 60 fewer
-    # numpy calls a step).
-    k = len(n)
-    roots = sqrtm_spd2(np.concatenate([X, S, Y]))              # X^1/2, S^1/2, Y^1/2
-    inverses = inv2(np.concatenate([S, roots[k:]]))            # S^-1, S^-1/2, Y^-1/2
-    X_half, S_inv, S_ihalf, Y_ihalf = (roots[:k], inverses[:k], inverses[k:2 * k],
-                                       inverses[2 * k:])
+    X_half = sqrtm_spd2(X)
+    S_inv = inv2(S)
+    S_ihalf = inv2(sqrtm_spd2(S))
+    Y_ihalf = inv2(sqrtm_spd2(Y))
     PHt = P[:, :, :2]                                  # P H^T, (k, 4, 2)
     K = PHt @ S_inv                                    # (k, 4, 2)
     eps = zbar - m[:, :2]
     if centroid_offset is not None:
         eps = eps - centroid_offset[comp]
-    m_new = m + einsum('kij,kj->ki', K, eps)
+    m_new = m + np.einsum('kij,kj->ki', K, eps)
     P_new = symmetrize(P - K @ PHt.swapaxes(1, 2))          # K S K^T = K (P H^T)^T
 
-    u = einsum('kij,kj->ki', X_half, einsum('kij,kj->ki', S_ihalf, eps))
+    u = np.einsum('kij,kj->ki', X_half, np.einsum('kij,kj->ki', S_ihalf, eps))
     N_hat = u[:, :, None] * u[:, None, :]
     M = X_half @ Y_ihalf
     Z_hat = M @ Z @ M.swapaxes(1, 2)
@@ -572,25 +537,24 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
 
     beta_eff = beta if rate_scale is None else beta / f      # f = 1: beta as it is
     alpha_new = alpha + n
-    logdet_V, logdet_Vn, logdet_X, logdet_Y, logdet_S = logdet_spd2(
-        np.concatenate([V, V_new, X, Y, S])).reshape(5, k)
-    # the six log-gammas (the Gamma-Poisson's two, the two bivariate ones' four) in one call
-    h0, h1 = HALF * (v - _D1), HALF * (v_new - _D1)
-    lg = gammaln(np.concatenate([alpha_new, alpha, h1, h1 - HALF, h0, h0 - HALF]))
-    lg_new, lg_old = lg[:k], lg[k:2 * k]
-    lg2_new = _HALF_LOG_PI + lg[2 * k:3 * k] + lg[3 * k:4 * k]        # log Gamma_2(h1)
-    lg2_old = _HALF_LOG_PI + lg[4 * k:5 * k] + lg[5 * k:]             # log Gamma_2(h0)
+    logdet_V, logdet_Vn = logdet_spd2(V), logdet_spd2(V_new)
+    logdet_X, logdet_Y, logdet_S = logdet_spd2(X), logdet_spd2(Y), logdet_spd2(S)
+    h0, h1 = 0.5 * (v - (D + 1)), 0.5 * (v_new - (D + 1))
+    # log Gamma_2(a) = (1/2) log pi + log Gamma(a) + log Gamma(a - 1/2)
+    lg2_new = _HALF_LOG_PI + gammaln(h1) + gammaln(h1 - 0.5)
+    lg2_old = _HALF_LOG_PI + gammaln(h0) + gammaln(h0 - 0.5)
+    lg_new, lg_old = gammaln(alpha_new), gammaln(alpha)
     log_lik = (
         # Gamma-Poisson: E[e^{-gamma} gamma^n] under Gam(alpha, beta_eff)
         lg_new - lg_old + alpha * np.log(beta_eff)
-        - alpha_new * np.log(beta_eff + ONE)
+        - alpha_new * np.log(beta_eff + 1.0)
         # Gaussian normalisation of n points and of the centroid
         - n * _LOG_PI - np.log(n)                                   # d = 2
         # inverse Wishart normalisers before and after
         + h0 * logdet_V - h1 * logdet_Vn
         + lg2_new - lg2_old
         # centroid innovation and spread scaling
-        + HALF * logdet_X - HALF * logdet_S + HALF * (n - ONE) * (logdet_X - logdet_Y)
+        + 0.5 * logdet_X - 0.5 * logdet_S + 0.5 * (n - 1.0) * (logdet_X - logdet_Y)
     )
     return PairUpdate(log_lik, alpha_new, beta + f, m_new, P_new, v_new, V_new)
 

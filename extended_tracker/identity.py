@@ -13,6 +13,7 @@ track (:func:`join_pairs`); where and when each id was last shown is remembered
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 import numpy as np
@@ -20,7 +21,6 @@ import numpy as np
 from .config import TrackerConfig
 from .cphd import thin_cardinality
 from .ggiw import Mixture
-from .memo import all_of, any_of, evolve, ONE_I, ZERO, ZERO_I
 from .partition import find_root, union_min
 from .reduction import join_parts
 from .state import Estimates, FilterState, find_sorted, NO_LABELS
@@ -98,15 +98,14 @@ def relabel_jumps(old: FilterState, new: FilterState, est: Estimates, cfg: Track
     # the fresh labels are the largest: move them to the end, so the estimates stay in
     # ascending label order as extract gives them (the shown record searches them)
     order = est_label.argsort(kind='stable')
-    return (evolve(new, mixture=evolve(mix, label=label),
+    return (replace(new, mixture=replace(mix, label=label),
                    next_label=new.next_label + len(bad)),
-            evolve(est, label=est_label).take(order), len(bad))
+            replace(est, label=est_label).take(order), len(bad))
 
 
 def _norm(d: np.ndarray, axis: int) -> np.ndarray:
-    """Euclidean length along ``axis`` (the sum ``np.linalg.norm`` computes, without its
-    dispatch cost on these small arrays)."""
-    return np.sqrt(np.add.reduce(d * d, axis=axis))
+    """Euclidean length along ``axis``."""
+    return np.sqrt(np.sum(d * d, axis=axis))
 
 
 def _speed_reach(ex, t):
@@ -192,33 +191,33 @@ def hand_over(old: FilterState, new: FilterState, est: Estimates, cfg: TrackerCo
         is_y, is_a = mix.label == y, mix.label == a
         label[is_y], label[is_a] = a, y
         est_label[est.label == y] = a
-        if not any_of(rec == a):
+        if not np.any(rec == a):
             rec[rec == y] = a
     order = est_label.argsort(kind='stable')
-    return (evolve(new, mixture=evolve(mix, label=label)),
-            evolve(est, label=est_label).take(order), evolve(old, reported=rec), len(pairs))
+    return (replace(new, mixture=replace(mix, label=label)),
+            replace(est, label=est_label).take(order), replace(old, reported=rec), len(pairs))
 
 
 def record_reports(old: FilterState, new: FilterState, est: Estimates) -> FilterState:
     """Carry per-label report counts, scans with returns, first positions and distances
     travelled."""
-    has = est.num_detections > ZERO_I
-    if len(est) == len(old.reported) and all_of(est.label == old.reported):
+    has = est.num_detections > 0
+    if len(est) == len(old.reported) and np.all(est.label == old.reported):
         # the labels of the last report again (most scans): row for row, nothing new
         travel = _norm(est.m[:, :2] - old.reported_origin, 1)
         # only where returns placed it: a coasting label drifts with its predicted velocity
-        travel = np.maximum(np.where(has, travel, ZERO), old.reported_travel)
-        return evolve(new, reported=est.label.copy(),
-                      reported_scans=old.reported_scans + ONE_I,
+        travel = np.maximum(np.where(has, travel, 0.0), old.reported_travel)
+        return replace(new, reported=est.label.copy(),
+                      reported_scans=old.reported_scans + 1,
                       reported_origin=old.reported_origin, reported_travel=travel,
                       reported_size=old.reported_size, reported_hits=old.reported_hits + has)
     index = {int(lab): i for i, lab in enumerate(old.reported.tolist())}
     # each label's row in the last report (-1: reported for the first time)
     prev = np.array([index.get(lab, -1) for lab in est.label.tolist()], dtype=np.int64)
-    again = prev >= ZERO_I
+    again = prev >= 0
     i = prev[again]
     scans = np.ones(len(est), dtype=np.int64)
-    scans[again] = old.reported_scans[i] + ONE_I
+    scans[again] = old.reported_scans[i] + 1
     origin = est.m[:, :2].copy()
     origin[again] = old.reported_origin[i]
     size = np.empty(len(est))
@@ -232,7 +231,7 @@ def record_reports(old: FilterState, new: FilterState, est: Estimates) -> Filter
     travel[again] = np.maximum(travel[again], old.reported_travel[i])
     hits = has.astype(np.int64)
     hits[again] += old.reported_hits[i]
-    return evolve(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
+    return replace(new, reported=est.label.copy(), reported_scans=scans, reported_origin=origin,
                   reported_travel=travel, reported_size=size, reported_hits=hits)
 
 
@@ -280,10 +279,10 @@ def join_pairs(state: FilterState, est: Estimates, cfg: TrackerConfig):
         i, j = np.triu_indices(len(est), 1)
         d = est.m[i, :2] - est.m[j, :2]
         dv = est.m[i, 2:] - est.m[j, 2:]
-        d2 = np.add.reduce(d * d, axis=1)
+        d2 = np.sum(d * d, axis=1)
         ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
               & (d2 <= rc.pair_distance ** 2)
-              & (np.add.reduce(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
+              & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
         taken, rows = set(), []
         for k in ok[d2[ok].argsort(kind='stable')].tolist():
             if i[k] not in taken and j[k] not in taken:
@@ -301,10 +300,10 @@ def join_pairs(state: FilterState, est: Estimates, cfg: TrackerConfig):
         rows[swap] = rows[swap][:, ::-1]
         ready = runs >= rc.pair_scans
         forming = est.label[rows[~ready, 1]]
-        if any_of(ready):
+        if np.any(ready):
             state, est, joined = _join(state, est, rows[ready], cfg)
             pairs, runs = pairs[~ready], runs[~ready]
-    return evolve(state, pairs=pairs, pair_runs=runs), est, joined, forming
+    return replace(state, pairs=pairs, pair_runs=runs), est, joined, forming
 
 
 def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConfig):
@@ -327,7 +326,7 @@ def _join(state: FilterState, est: Estimates, rows: np.ndarray, cfg: TrackerConf
         log_card = thin_cardinality(log_card, removed)
     keep = np.ones(len(est), dtype=bool)
     keep[junior_rows] = False
-    state = evolve(state, mixture=Mixture.concat([mix.take(~drop)] + joined),
+    state = replace(state, mixture=Mixture.concat([mix.take(~drop)] + joined),
                    log_card=log_card, reported=state.reported[keep],
                    reported_scans=state.reported_scans[keep],
                    reported_origin=state.reported_origin[keep],
@@ -357,21 +356,20 @@ def remember_shown(old: FilterState, new: FilterState, shown: Estimates,
             and lab not in gone]
     clock = tuple((ago + dt, lab) for ago, lab in old.label_clock if ago + dt <= handover_time)
     clock += ((0.0, old.next_label),)
-    if not keep and all_of(shown.label[1:] > shown.label[:-1]):
+    if not keep and np.all(shown.label[1:] > shown.label[:-1]):
         # every label of the record is shown again or gone (most scans): the record is this
         # scan's, its labels ascending already (as the estimates come)
-        return evolve(new, shown=shown.label.copy(), shown_pos=shown.m[:, :2].copy(),
+        return replace(new, shown=shown.label.copy(), shown_pos=shown.m[:, :2].copy(),
                       shown_vel=shown.m[:, 2:].copy(), shown_elapsed=np.zeros(len(shown)),
                       label_clock=clock)
     keep = np.array(keep, dtype=np.int64)
-    # rows of the (r, 2) arrays by take (memo.row_index)
     label = np.concatenate([old.shown[keep], shown.label])
-    pos = np.concatenate([old.shown_pos.take(keep, 0), shown.m[:, :2]])
-    vel = np.concatenate([old.shown_vel.take(keep, 0), shown.m[:, 2:]])
+    pos = np.concatenate([old.shown_pos[keep], shown.m[:, :2]])
+    vel = np.concatenate([old.shown_vel[keep], shown.m[:, 2:]])
     elapsed = np.concatenate([old.shown_elapsed[keep] + dt, np.zeros(len(shown))])
     order = label.argsort(kind='stable')
-    return evolve(new, shown=label[order], shown_pos=pos.take(order, 0),
-                  shown_vel=vel.take(order, 0), shown_elapsed=elapsed[order], label_clock=clock)
+    return replace(new, shown=label[order], shown_pos=pos[order],
+                  shown_vel=vel[order], shown_elapsed=elapsed[order], label_clock=clock)
 
 
 def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: float):
@@ -430,14 +428,14 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
     # how near an end of one piece comes to the other piece (the nearest point of its
     # segment: t along it, within its half-length), the nearer of the two ways round
     rel = ends[:, None, :] - centre[None, :, :]                          # (2s, s, 2)
-    t = np.clip(np.add.reduce(rel * u[None], axis=2), -half[None], half[None])
+    t = np.clip(np.sum(rel * u[None], axis=2), -half[None], half[None])
     off = rel - t[:, :, None] * u[None]
     d = _norm(off, 2).reshape(2, s, s).min(axis=0)
     d = np.minimum(d, d.T)
     dv = _norm(est.m[seg, None, 2:] - est.m[None, seg, 2:], 2)
     near = (d <= gap) & (dv <= speed)
     np.fill_diagonal(near, False)
-    if not any_of(near):
+    if not np.any(near):
         return est, 0
     parent = list(range(s))
     for i, j in zip(*near.nonzero()):

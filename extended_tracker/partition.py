@@ -27,22 +27,6 @@ from scipy.spatial import cKDTree, Delaunay, QhullError
 from scipy.spatial.distance import pdist
 
 from .ggiw import centre_distance2
-from .memo import all_of, any_of, constants, FOUR_I, ONE_I, TWO_I, ZERO_I
-
-try:
-    # the C routine scipy's ``linkage(y, 'single')`` calls after validating ``y`` (77 us of
-    # checks and array-API dispatch around a 30 us MST at 46 returns); a test holds it
-    # equal to ``linkage``, which stands in where a scipy release moves it
-    from scipy.cluster._hierarchy import mst_single_linkage as _mst_single_linkage
-except ImportError:                      # pragma: no cover - other scipy releases
-    _mst_single_linkage = None
-
-try:
-    # the compiled kernel pdist(X, 'euclidean') calls after its checks; pdist stands in
-    # where a scipy release moves it
-    from scipy.spatial._distance_pybind import pdist_euclidean as _pdist_euclidean
-except ImportError:                      # pragma: no cover - other scipy releases
-    _pdist_euclidean = None
 
 
 @dataclass
@@ -99,7 +83,6 @@ class PartitionSet:
                 fresh = list(current)
             else:
                 moved = labels != prev
-                # a handful of labels: Python sets beat np.unique's sort by ~10 us each
                 for r in set(prev[moved].tolist()):
                     del current[r]                    # absorbed into a smaller label
                 fresh = sorted(set(labels[moved].tolist()))
@@ -133,8 +116,8 @@ class PartitionSet:
         against two clutter returns (and a track may still take either return alone).
         """
         counts = np.bincount(finest, minlength=len(finest))
-        small = (counts >= TWO_I) & (counts <= split_small)
-        if not any_of(small):
+        small = (counts >= 2) & (counts <= split_small)
+        if not np.any(small):
             return
         # the finest partition's cells once (the entries are shared, so a cell one variant
         # adds is known to the next); each variant is them with one cell's returns alone
@@ -180,37 +163,15 @@ def _groups(labels: np.ndarray, with_labels: bool = False):
     """
     order = labels.argsort(kind='stable')
     lab = labels[order]
-    # the + 1 in Python: a handful of cuts, where an array operation costs 4000 instructions
     cuts = [0, *[i + 1 for i in (lab[1:] != lab[:-1]).nonzero()[0].tolist()], len(order)]
-    # slices, not np.split: its per-piece Python wrapper cost 20 us per partition
     cells = [order[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
     if not with_labels:
         return cells
-    # the labels from one list, not a numpy scalar read per cell (1200 instructions each)
     lab = lab.tolist()
     return [lab[a] for a in cuts[:-1]], cells
 
 
-def single_linkage(y: np.ndarray, n: int) -> np.ndarray:
-    """``scipy.cluster.hierarchy.linkage(y, 'single')`` of finite condensed distances."""
-    if _mst_single_linkage is None:
-        return linkage(y, method='single')
-    return _mst_single_linkage(y, n)
-
-
 LINKAGE_MAX = 1150      # up to this many detections: scipy's single linkage on all pairs
-
-
-def condensed_distances(points: np.ndarray) -> np.ndarray:
-    """
-    ``scipy.spatial.distance.pdist(points)`` (Euclidean): scipy's compiled kernel that
-    pdist calls, without pdist's argument checks and array-API dispatch, which cost more
-    than the arithmetic at a few dozen returns (4 against 11 us at 46). The values are
-    pdist's bit for bit (a test holds them equal).
-    """
-    if _pdist_euclidean is None:
-        return pdist(points)
-    return _pdist_euclidean(np.ascontiguousarray(points, dtype=float))
 
 
 def _merges(points: np.ndarray, d_max: float):
@@ -238,7 +199,7 @@ def _merges(points: np.ndarray, d_max: float):
     if n < 2:
         return [], [], np.zeros(0)
     if n <= LINKAGE_MAX:
-        z = single_linkage(condensed_distances(points), n)
+        z = linkage(pdist(points), method='single')
         k = int(z[:, 2].searchsorted(d_max, side='right'))
         pair = z[:k, :2].astype(np.int64).tolist()
         rep = list(range(n)) + [0] * k                # a cluster's smallest detection index
@@ -422,14 +383,14 @@ def _roots(parent: np.ndarray) -> np.ndarray:
     labels = parent
     while True:
         nxt = labels[labels]
-        if all_of(nxt == labels):
+        if np.all(nxt == labels):
             return labels
         labels = nxt
 
 
 def _sums_by(labels: np.ndarray, points: np.ndarray, n: int) -> np.ndarray:
     """(n, 2) sums of the points of each label ``0..n-1``."""
-    out = np.empty((n, 2))                  # not column_stack: its Python wrapper is 3 us
+    out = np.empty((n, 2))
     out[:, 0] = np.bincount(labels, weights=points[:, 0], minlength=n)
     out[:, 1] = np.bincount(labels, weights=points[:, 1], minlength=n)
     return out
@@ -472,7 +433,7 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
         dx, dy = x - first[0], y - first[1]
         d2 = dx * dx + dy * dy                                 # to the nearest centre so far
         for _ in range(1, k):
-            total = np.add.reduce(d2)
+            total = np.sum(d2)
             if total <= 0:
                 break
             # rng.choice(n, p=d2 / total) without its argument checks: the same cdf, the
@@ -496,15 +457,15 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     for _ in range(iters):
         dx, dy = x_col - cx, y_col - cy
         new = (dx * dx + dy * dy).argmin(axis=1)
-        if _ and all_of(new == labels):       # not array_equal's wrapper
+        if _ and np.all(new == labels):       # not array_equal's wrapper
             break
         labels = new
         # each centre moves to the mean of its points; an empty cluster's centre stays
         count = np.bincount(labels, minlength=k)
         sx = np.bincount(labels, weights=x, minlength=k)
         sy = np.bincount(labels, weights=y, minlength=k)
-        filled = count > ZERO_I
-        if all_of(filled):
+        filled = count > 0
+        if np.all(filled):
             cx, cy = sx / count, sy / count
         else:
             cx[filled] = sx[filled] / count[filled]
@@ -512,7 +473,7 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     return labels
 
 
-_MIN_RATE, = constants(1e-9)
+MIN_RATE = 1e-9
 
 
 def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -> np.ndarray:
@@ -526,9 +487,9 @@ def expected_object_counts(n_points: np.ndarray, rate: np.ndarray, k_max: int) -
     for every cell at once.
     """
     k = np.arange(1, k_max + 1)[None, :]
-    mean = k * np.maximum(rate, _MIN_RATE)[:, None]
+    mean = k * np.maximum(rate, MIN_RATE)[:, None]
     log_p = n_points[:, None] * np.log(mean) - mean
-    return log_p.argmax(axis=1) + ONE_I
+    return log_p.argmax(axis=1) + 1
 
 
 def build_partitions(points: np.ndarray, cfg, predicted=None, seed: int = 0) -> PartitionSet:
@@ -595,7 +556,7 @@ def _big_cells(points: np.ndarray, labels: np.ndarray):
     """
     m = len(points)
     counts_all = np.bincount(labels, minlength=m)    # not unique / add.at
-    big = (counts_all >= FOUR_I).nonzero()[0]
+    big = (counts_all >= 4).nonzero()[0]
     if not len(big):
         return None
     counts = counts_all[big]
@@ -638,7 +599,7 @@ def _sub_partitions(points, pset, base, big, d2, predicted, cfg, seed):
     k_rate = expected_object_counts(counts[cand], rate, cfg.max_sub_objects)
     k_all = np.minimum(np.minimum(np.maximum(k_pred, k_rate), cfg.max_sub_objects),
                        counts[cand])
-    for row in (k_all >= TWO_I).nonzero()[0]:
+    for row in (k_all >= 2).nonzero()[0]:
         if len(pset.partitions) >= cfg.max_partitions:
             pset.capped_partitions += 1               # no room: not worth a k-means
             continue

@@ -30,7 +30,7 @@ through it, event ``unexplained_scan``, the reason in ``result.error``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 import time
 
 import numpy as np
@@ -39,7 +39,6 @@ from .config import TrackerConfig
 from .cphd import thin_cardinality
 from .errors import ScanError
 from .ggiw import gate_covariance, gate_distance2, inv2
-from .memo import any_of, evolve
 from .sensing.background import BackgroundState, beams_near_tracks, update_background
 from .sensing.scan import frame_of, INVALID_KINDS, scan_to_points, ScanPoints, stamp_ns
 from .sensing.shadow import detection_model, pair_detection_probability, sparse_births
@@ -133,14 +132,14 @@ def _absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) 
     def gated(z):
         if not len(z):
             return np.zeros(len(mix), dtype=bool)
-        return np.logical_or.reduce(gate_distance2(mix, z, gi) < threshold, axis=1)
+        return np.any(gate_distance2(mix, z, gi) < threshold, axis=1)
 
     return gated(learned) & ~gated(points)
 
 
 def _card_of(state: PipelineState):
     card = np.exp(state.filter.log_card)
-    return card, float(np.add.reduce(np.arange(len(card)) * card))      # np.sum's sum
+    return card, float(np.sum(np.arange(len(card)) * card))
 
 
 def _repeat(state, scan_stamp, frame, event, error, t0, diag=None):
@@ -175,7 +174,7 @@ def _scan_time(stamp: int, arrival_ns: int | None) -> tuple[int, bool]:
 
 def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
     """A fresh filter whose labels continue after the old ones (ids are never reused)."""
-    return evolve(FilterState.initial(cfg), next_label=filt.next_label)
+    return replace(FilterState.initial(cfg), next_label=filt.next_label)
 
 
 def reset(state: PipelineState, cfg: TrackerConfig) -> PipelineState:
@@ -305,13 +304,13 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         # births of this scan stay), and their weight taken from the cardinality
         mix = pred.mixture
         on_bg = _absorbed(mix, learned, points, cfg) & (mix.label < filt.next_label)
-        if any_of(on_bg):
-            pred = evolve(pred, mixture=mix.take(~on_bg),
+        if np.any(on_bg):
+            pred = replace(pred, mixture=mix.take(~on_bg),
                           log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
             diag['absorbed'] = int(np.count_nonzero(on_bg))
     vis = detection_model(pred.mixture, sp, cfg)
     drop = None if vis.outside is None else vis.outside | vis.at_sensor | vis.sparse
-    if drop is not None and any_of(drop):
+    if drop is not None and np.any(drop):
         # objects that left the field of view or range can never be seen again here:
         # dropped rather than left to coast forever with p_D = 0. So are components the
         # sensor would stand in, and those in view that expect far fewer returns than the
@@ -326,7 +325,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         if diag['at_sensor'] or diag['sparse']:
             not_objects = at_sensor | sparse
             log_card = thin_cardinality(log_card, float(pred.mixture.w[not_objects].sum()))
-        pred = evolve(pred, mixture=pred.mixture.take(~drop), log_card=log_card)
+        pred = replace(pred, mixture=pred.mixture.take(~drop), log_card=log_card)
         vis = vis.take(~drop)
 
     def pair_p_d(mix, comp, m_new, P_new):
@@ -349,7 +348,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         why = (f'no partition of the {len(points)} returns is possible (more objects than '
                f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
         error = why if error is None else f'{error}; {why}'
-    new_state = evolve(state, filter=new_filter, background=background, last_stamp_ns=now,
+    new_state = replace(state, filter=new_filter, background=background, last_stamp_ns=now,
                        frame_id=frame, last_estimates=estimates, moved=moved,
                        scans=state.scans + 1,
                        elapsed=state.elapsed + dt)

@@ -17,9 +17,8 @@ import numpy as np
 from scipy.special import digamma, zeta
 
 from .ggiw import (
-    D, eig2, einsum, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize, weight_key,
+    D, eig2, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize, weight_key,
 )
-from .memo import all_of, any_of, constants, HALF, ONE, TWO, ZERO
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -29,7 +28,7 @@ MIN_SEMI_AXIS = 0.01     # m: merged extents keep at least this semi-axis (see _
 def _trigamma(x):
     """``polygamma(1, x)``, called as the Hurwitz zeta ``zeta(2, x)`` it evaluates (the same
     values, without polygamma's Python wrapper, which also evaluates digamma)."""
-    return zeta(TWO, x)
+    return zeta(2.0, x)
 
 
 _TINY = np.finfo(float).tiny
@@ -42,9 +41,9 @@ def _gamma_shape_start(c):
     the equal ``2 / (r + c - 3)``: there ``3 - c + r`` cancels (to 0 once ``c`` passes
     some 1e16, as for a rate whose shape forgetting drove towards 0).
     """
-    d = c - _3
-    r = np.sqrt(d * d + _24 * c)
-    return np.where(c < _3, (_3 - c + r) / (_12 * c), TWO / (r + c - _3))
+    d = c - 3.0
+    r = np.sqrt(d * d + 24.0 * c)
+    return np.where(c < 3.0, (3.0 - c + r) / (12.0 * c), 2.0 / (r + c - 3.0))
 
 
 def merge_gamma(w, alpha, beta):
@@ -81,12 +80,11 @@ def merge_gamma(w, alpha, beta):
 # 4 psi_1(nu - 1) (one evaluation each instead of two and a sum)
 assert D == 2
 _LOG4 = 2.0 * np.log(2.0)
-# constants of the solves' array expressions (memo.constants)
-_3, _12, _24, _LOG4_A, _RTOL, _GUESS_SHIFT, _GAMMA_C_MIN = constants(
-    3, 12, 24, _LOG4, 1e-10, 0.75, 1e-12)
-_IW, _NU_BASE, _MIN_SEMI_AXIS2, _RATIO, _TINY_DIFF, _NU_MIN = constants(
-    IW_OFFSET, IW_OFFSET - D - 1, MIN_SEMI_AXIS ** 2, MEAN_EXTENT_RATIO, 1e-300,
-    IW_OFFSET - D - 1 + 1e-9)
+SOLVE_RTOL = 1e-10        # relative tolerance of the Newton solves
+GUESS_SHIFT = 0.75        # start of the nu solve: 3 / excess + this
+GAMMA_C_MIN = 1e-12       # least log(mean) - E[log gamma] the Gamma shape solve takes
+NU_BASE = IW_OFFSET - D - 1          # nu = d + 1 is v = 2d + 2
+NU_MIN = NU_BASE + 1e-9
 
 
 def _solve_nu(target, lo, hi, start, iters=60):
@@ -112,35 +110,35 @@ def _solve_nu(target, lo, hi, start, iters=60):
 
     def f(nu, shift):
         # shift = 2 log 2 - t, taken once a solve
-        x = nu - ONE
-        return TWO * (np.log(nu) - digamma(x)) + shift, x
+        x = nu - 1.0
+        return 2.0 * (np.log(nu) - digamma(x)) + shift, x
 
-    ends, _ = f(np.concatenate([lo, hi]), _LOG4_A - np.concatenate([target, target]))
-    below, above_hi = ends[:k] <= ZERO, ends[k:] >= ZERO
+    ends, _ = f(np.concatenate([lo, hi]), _LOG4 - np.concatenate([target, target]))
+    below, above_hi = ends[:k] <= 0.0, ends[k:] >= 0.0
     out = np.where(below, lo, np.where(above_hi, hi, 0.0))
     free = ~(below | above_hi)
-    if not any_of(free):
+    if not np.any(free):
         return out
     t, a, b = target[free], lo[free], hi[free]
-    shift = _LOG4_A - t
-    excess = t - _LOG4_A
+    shift = _LOG4 - t
+    excess = t - _LOG4
     with np.errstate(divide='ignore', invalid='ignore'):
-        guess = _3 / excess + _GUESS_SHIFT
-    nu = np.minimum(np.maximum(np.where(excess > ZERO, guess, start[free]), a), b)
+        guess = 3.0 / excess + GUESS_SHIFT
+    nu = np.minimum(np.maximum(np.where(excess > 0.0, guess, start[free]), a), b)
     with np.errstate(divide='ignore', invalid='ignore'):        # fp = 0: bisection below
         for _ in range(iters):
             val, x = f(nu, shift)
-            above = val > ZERO                             # the root is above nu
+            above = val > 0.0                             # the root is above nu
             a = np.where(above, nu, a)
             b = np.where(above, b, nu)
-            fp = TWO / nu - TWO * _trigamma(x)
-            nxt = nu / (ONE + val / (nu * fp))                   # u - g(u) / g'(u)
+            fp = 2.0 / nu - 2.0 * _trigamma(x)
+            nxt = nu / (1.0 + val / (nu * fp))                   # u - g(u) / g'(u)
             # inclusive: at the root (val == 0) the step stays on an end of the bracket,
             # and bisecting from there wanders off the root for a dozen steps
             inside = (nxt >= a) & (nxt <= b)
-            if not all_of(inside):                        # bisect where it would leave
-                nxt = np.where(inside, nxt, HALF * (a + b))
-            done = all_of(np.abs(nxt - nu) <= _RTOL * nu)
+            if not np.all(inside):                        # bisect where it would leave
+                nxt = np.where(inside, nxt, 0.5 * (a + b))
+            done = np.all(np.abs(nxt - nu) <= SOLVE_RTOL * nu)
             nu = nxt
             if done:
                 break
@@ -161,22 +159,21 @@ def _floor_extent(V, v):
     ran away. One centimetre is below the sensor noise, so the floor changes nothing
     measurable.
     """
-    s = v - _IW
+    s = v - IW_OFFSET
     _, minor2 = eig2(V / s[:, None, None])
-    lift = np.maximum(_MIN_SEMI_AXIS2 - minor2, ZERO)
+    lift = np.maximum(MIN_SEMI_AXIS ** 2 - minor2, 0.0)
     return V + (s * lift)[:, None, None] * np.eye(D)
 
 
 def _nu_floor(mean_trace, t):
     """Smallest ``nu`` whose ``tr E[X] = nu t / (nu - d - 1)`` is within the ratio."""
-    c = _RATIO * mean_trace
-    # _NU_BASE: nu = d + 1 is v = 2d + 2
-    return np.maximum(_NU_BASE * c / np.maximum(c - t, _TINY_DIFF), _NU_MIN)
+    c = MEAN_EXTENT_RATIO * mean_trace
+    return np.maximum(NU_BASE * c / np.maximum(c - t, 1e-300), NU_MIN)
 
 
 def _iw_psi_sum(nu):
     """``sum_{j=1}^{d} digamma((nu - j + 1) / 2)`` for scalar or (k,) ``nu`` (d = 2)."""
-    return TWO * digamma(np.asarray(nu, dtype=float) - ONE) - _LOG4_A
+    return 2.0 * digamma(np.asarray(nu, dtype=float) - 1.0) - _LOG4
 
 
 def merge_iw(w, v, V):
@@ -234,29 +231,29 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     w = mix.w[idx]
     W = np.add.reduceat(w, starts)
     wn = w / W[gid]
-    m_i = mix.m.take(idx, 0)              # rows of matrix fields by take (memo.row_index)
+    m_i = mix.m[idx]
     m = np.add.reduceat(wn[:, None] * m_i, starts)
-    dm = m_i - m.take(gid, 0)
-    spread = mix.P.take(idx, 0) + dm[:, :, None] * dm[:, None, :]
+    dm = m_i - m[gid]
+    spread = mix.P[idx] + dm[:, :, None] * dm[:, None, :]
     P = np.add.reduceat(wn[:, None, None] * spread, starts)
     # Gamma: log a - digamma(a) = log E[g] - E[log g] =: c
     al, be = mix.alpha[idx], mix.beta[idx]
     mean = np.add.reduceat(wn * al / be, starts)
     elog = np.add.reduceat(wn * (digamma(al) - np.log(be)), starts)
-    c = np.maximum(np.log(mean) - elog, _GAMMA_C_MIN)
+    c = np.maximum(np.log(mean) - elog, GAMMA_C_MIN)
     a = _gamma_shape_start(c)
     for _ in range(20):
-        step = (np.log(a) - digamma(a) - c) / (ONE / a - _trigamma(a))
+        step = (np.log(a) - digamma(a) - c) / (1.0 / a - _trigamma(a))
         new = a - step
-        positive = new > ZERO
+        positive = new > 0.0
         # halved where the step would leave a > 0 (rare: the where only then)
-        a = new if all_of(positive) else np.where(positive, new, a * HALF)
-        if all_of(np.abs(step) <= _RTOL * a):
+        a = new if np.all(positive) else np.where(positive, new, a * 0.5)
+        if np.all(np.abs(step) <= SOLVE_RTOL * a):
             break
     b = a / mean
     # inverse Wishart
-    V_i = mix.V.take(idx, 0)
-    nu_i = mix.v[idx] - _3                # v - d - 1, exact: v > 6
+    V_i = mix.V[idx]
+    nu_i = mix.v[idx] - 3.0                # v - d - 1, exact: v > 6
     wnu = wn * nu_i
     Psi = np.add.reduceat(wnu[:, None, None] * inv2(V_i), starts)
     elog_x = np.add.reduceat(wn * (logdet_spd2(V_i) - _iw_psi_sum(nu_i)), starts)
@@ -266,11 +263,11 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     lo = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
     nu = _solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
                    np.add.reduceat(wnu, starts))
-    V = _floor_extent(nu[:, None, None] * iPsi, nu + TWO + ONE)
+    V = _floor_extent(nu[:, None, None] * iPsi, nu + 2.0 + 1.0)
     # label of the heaviest member
     first = np.lexsort((-weight_key(w), gid))[starts]
     label = mix.label[idx[first]]
-    return Mixture(W, a, b, m, symmetrize(P), nu + TWO + ONE, symmetrize(V), label)
+    return Mixture(W, a, b, m, symmetrize(P), nu + 2.0 + 1.0, symmetrize(V), label)
 
 
 def merge_components(mix: Mixture, idx: np.ndarray):
@@ -301,7 +298,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     # a weight of 0 (or below the smallest normal double) is pruned even with
     # prune_weight 0: a group of such members has no weight to match moments by
     keep = mix.w >= max(prune_weight, _TINY)
-    if not all_of(keep):
+    if not np.all(keep):
         mix = mix.take(keep)
     if not len(mix):
         return mix, 0
@@ -311,10 +308,9 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     n_groups = int(gid[-1]) + 1
     heads = order[first]
     head = heads[gid]                                  # heaviest of each member's label
-    # rows of matrix fields by take (index arrays here; memo.row_index)
     pos = mix.m[:, :2]
-    e = pos.take(order, 0) - pos.take(head, 0)
-    d2 = einsum('ki,kij,kj->k', e, inv2(mix.P.take(heads, 0)[:, :2, :2]).take(gid, 0), e)
+    e = pos[order] - pos[head]
+    d2 = np.einsum('ki,kij,kj->k', e, inv2(mix.P[heads][:, :2, :2])[gid], e)
     # per label, a handful of them: its members (heaviest first), whether one lies beyond
     # the merge distance, and whether one has 1 % of the head's weight or more (lighter
     # members move it by less than that: their weight is added to the head instead of a
@@ -354,7 +350,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         while len(remaining):
             j = remaining[0]
             e = mix.m[remaining, :2] - mix.m[j, :2]
-            d2 = einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
+            d2 = np.einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
             near = d2 <= merge_distance
             if near.sum() > 1:
                 multi.append(remaining[near])
@@ -366,8 +362,8 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     w = mix.w[rows]
     if absorbed:
         w[len(kept):] = absorbed_w
-    merged = Mixture(w, mix.alpha[rows], mix.beta[rows], mix.m.take(rows, 0),
-                     mix.P.take(rows, 0), mix.v[rows], mix.V.take(rows, 0), mix.label[rows])
+    merged = Mixture(w, mix.alpha[rows], mix.beta[rows], mix.m[rows],
+                     mix.P[rows], mix.v[rows], mix.V[rows], mix.label[rows])
     if multi:
         merged = Mixture.concat([merged, merge_groups(mix, multi)])
     capped = 0
@@ -395,9 +391,9 @@ def join_parts(mix: Mixture, heads: np.ndarray, weights: np.ndarray, label: int)
     share = share / share.sum()
     m = share @ mix.m[heads]
     dm = mix.m[heads] - m
-    P = einsum('k,kij->ij', share, mix.P[heads] + dm[:, :, None] * dm[:, None, :])
+    P = np.einsum('k,kij->ij', share, mix.P[heads] + dm[:, :, None] * dm[:, None, :])
     dc = dm[:, :2]
-    X = einsum('k,kij->ij', share, mix.expected_extent(heads) + dc[:, :, None] * dc[:, None, :])
+    X = np.einsum('k,kij->ij', share, mix.expected_extent(heads) + dc[:, :, None] * dc[:, None, :])
     v = float(mix.v[heads].min())
     beta = float(mix.beta[heads].min())
     return Mixture(np.array([float(np.max(weights))]), np.array([rate.sum() * beta]),

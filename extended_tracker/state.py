@@ -9,18 +9,18 @@ one scan reports; :class:`StepDiagnostics` counts what a step did.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from .config import ExtractionConfig, TrackerConfig
 from .ggiw import eig2, Mixture
-from .memo import cached_attribute, lean_init, read_only, row_index
+from .tables import read_only
 
 NEG_INF = -np.inf
 NO_LABELS = read_only(np.zeros(0, np.int64))[0]
 
 
-@lean_init
 @dataclass(frozen=True)
 class Estimates:
     """
@@ -52,16 +52,15 @@ class Estimates:
 
     def take(self, idx) -> 'Estimates':
         """The objects at ``idx`` (index array or boolean mask)."""
-        idx = row_index(idx, len(self.label))             # as in Mixture.take
-        return Estimates(self.label[idx], self.existence[idx], self.m.take(idx, 0),
-                         self.P.take(idx, 0), self.X.take(idx, 0), self.rate[idx],
+        return Estimates(self.label[idx], self.existence[idx], self.m[idx],
+                         self.P[idx], self.X[idx], self.rate[idx],
                          self.num_detections[idx], self.visibility[idx])
 
     def axes(self):
         """Semi-major, semi-minor (m) and yaw of the major axis (rad) of each extent."""
         return self._axes
 
-    @cached_attribute
+    @cached_property
     def _axes(self):
         # computed once per scan's estimates, read by messages, markers, shapes and plots
         # (shared, so read-only)

@@ -11,6 +11,7 @@ The laser front end and the per-scan pipeline (:mod:`extended_tracker.pipeline`)
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -22,16 +23,15 @@ from .cphd import (
     resize_cardinality, thin_cardinality,
 )
 from .ggiw import (
-    cell_stats, eig2, einsum, gate_covariance, gate_pairs, group_heads, inv2, IW_OFFSET,
+    cell_stats, eig2, gate_covariance, gate_pairs, group_heads, inv2, IW_OFFSET,
     log_miss_factor, Mixture, predict, quad_form2, update_pairs, weight_key,
 )
 from .identity import (
     group_segments, hand_over, join_pairs, record_reports, relabel_jumps, remember_shown,
 )
-from .logmath import filled, neg_inf
-from .memo import all_of, any_of, cached_tables, evolve, ONE, ZERO
 from .partition import build_partitions, find_root, union_min
 from .reduction import reduce_mixture
+from .tables import cached_tables
 from .state import Estimates, FilterState, find_sorted, NEG_INF, NO_LABELS, StepDiagnostics
 
 
@@ -64,10 +64,10 @@ def region_births(cfg: TrackerConfig, first_label: int) -> Mixture:
     m = np.zeros((k, 4))
     m[:, :2] = reg[:, :2]
     X0 = (b.extent_semi_axis ** 2) * np.eye(2)
-    v = np.full(k, b.dof)
+    v = np.full(k, float(b.dof))
     V = np.broadcast_to((b.dof - IW_OFFSET) * X0, (k, 2, 2)).copy()
-    alpha = np.full(k, b.rate_shape)
-    return Mixture(np.full(k, b.weight), alpha, alpha / b.expected_rate, m, P, v, V,
+    alpha = np.full(k, float(b.rate_shape))
+    return Mixture(np.full(k, float(b.weight)), alpha, alpha / b.expected_rate, m, P, v, V,
                    np.arange(first_label, first_label + k, dtype=np.int64))
 
 
@@ -86,14 +86,14 @@ def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterSt
     if len(cfg.birth.regions):
         regions = region_births(cfg, next_label)
         next_label += len(regions)
-        birth_mean += float(np.add.reduce(regions.w))
+        birth_mean += float(np.sum(regions.w))
         mixture = Mixture.concat([mixture, regions])
     p_s = mc.p_survival ** dt
     log_card = state.log_card
     if len(log_card) != mc.n_max + 1:                 # N_max changed while running
         log_card = resize_cardinality(log_card, mc.n_max)
     log_card = predict_cardinality(log_card, p_s, birth_mean)
-    return evolve(state, mixture=mixture, log_card=log_card, next_label=next_label, dt=dt)
+    return replace(state, mixture=mixture, log_card=log_card, next_label=next_label, dt=dt)
 
 
 def birth_intensity(cfg: TrackerConfig, dt: float) -> float:
@@ -118,13 +118,12 @@ def _gates(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
     if not len(best):
         return inv2(G), None
     n = len(mix)
-    # rows of matrix fields by take (index arrays here; memo.row_index)
-    inverses = inv2(np.concatenate([G, mix.P.take(best, 0)[:, :2, :2]
+    inverses = inv2(np.concatenate([G, mix.P[best][:, :2, :2]
                                     + mix.expected_extent(best) + R]))
     return inverses[:n], {
-        'centre': mix.m.take(best, 0)[:, :2],
+        'centre': mix.m[best][:, :2],
         'gate_inv': inverses[n:],
-        'gate': np.array(gate_threshold(cfg)),       # an array operand (memo.constants)
+        'gate': gate_threshold(cfg),
         'rate': mix.expected_rate()[best],
     }
 
@@ -149,8 +148,8 @@ def _birth_prior(stats, cfg: TrackerConfig, area: float) -> Mixture:
     m[:, :2] = stats.mean
     # beta as rate_shape / expected_rate once, in Python: the same double as dividing
     # every alpha by expected_rate
-    alpha, beta = filled(k, b.rate_shape), filled(k, b.rate_shape / b.expected_rate)
-    return Mixture(filled(k, 1.0), alpha, beta, m, P0.repeat(k, axis=0), filled(k, b.dof),
+    alpha, beta = np.full(k, float(b.rate_shape)), np.full(k, b.rate_shape / b.expected_rate)
+    return Mixture(np.full(k, 1.0), alpha, beta, m, P0.repeat(k, axis=0), np.full(k, float(b.dof)),
                    V0.repeat(k, axis=0), np.zeros(k, dtype=np.int64))
 
 
@@ -239,7 +238,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     mix = state.mixture
     n_comp = len(mix)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not all_of(np.isfinite(points)):
+    if not np.all(np.isfinite(points)):
         # the pipeline's scan conversion masks and counts such beams; a direct caller
         # gets told here rather than by whatever numeric routine meets them first
         bad = int((~np.isfinite(points).all(axis=1)).sum())
@@ -264,7 +263,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     comp, cell = gate_pairs(mix, stats, mc.rho, R, gate_threshold(cfg), gate_inv)
     hidden = None
     if visibility is not None:
-        hidden = np.minimum(np.maximum(ONE - visibility, ZERO), ONE)
+        hidden = np.minimum(np.maximum(1.0 - visibility, 0.0), 1.0)
     # existing components and the birth row (one GGIW per cell) in one batched update
     birth_prior = _birth_prior(stats, cfg, area)
     both = Mixture.concat([mix, birth_prior]) if n_comp else birth_prior
@@ -278,9 +277,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     pair_lik, birth_lik = upd_all.log_lik[:k], upd_all.log_lik[k:]
     p_d_pair = (p_d[comp] if pair_p_d is None
                 else pair_p_d(mix, comp, upd_all.m[:k], upd_all.P[:k]))
-    keep = p_d_pair > ZERO
+    keep = p_d_pair > 0.0
     pair_rows = None                           # rows of upd_all holding the pairs kept
-    if not all_of(keep):
+    if not np.all(keep):
         pair_rows = keep.nonzero()[0]
         comp, cell, p_d_pair, pair_lik = comp[keep], cell[keep], p_d_pair[keep], pair_lik[keep]
     diag.pairs = len(comp)
@@ -288,9 +287,9 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     if shadowed is not None and cfg.detection.hold_hidden:
         p_d, held = _held_p_d(state, cfg, p_d, shadowed, comp, cell, stats.mean, R)
         diag.held = int(np.count_nonzero(held))
-    log_pd0 = _log_constant(cfg.detection.p_d0)
+    log_pd0 = np.log(cfg.detection.p_d0)
 
-    log_g = neg_inf((n_comp + 1, n_cells))
+    log_g = np.full((n_comp + 1, n_cells), -np.inf)
     log_g[comp, cell] = np.log(p_d_pair) + pair_lik
     born_ok = stats.n >= cfg.birth.min_points
     if no_birth is not None:
@@ -300,7 +299,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         # recordings
         free = born_ok.copy()
         free[cell] = False
-        if any_of(free):
+        if np.any(free):
             rows = free.nonzero()[0]
             refused = rows[no_birth(upd_all.take(k + rows))]
             diag.sparse_births = len(refused)
@@ -312,7 +311,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         # clutter return by return (clutter alone would make every partition holding it
         # impossible, and the cardinality NaN from then on)
         lonely = (stats.n > 1) & ~np.isfinite(log_g).any(axis=0)
-        if not any_of(lonely):
+        if not np.any(lonely):
             lonely = None
     partitions = pset.partitions
     if lonely is not None:
@@ -334,7 +333,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
             apart = _out_of_sight(mix, held, comp)
             if apart is not None:
                 rows, w_apart = apart
-                total_apart = float(np.add.reduce(w_apart))
+                total_apart = float(np.sum(w_apart))
                 with np.errstate(divide='ignore'):
                     log_w[rows] = np.log(np.maximum(mix.w[rows] - w_apart, 0.0))
                 log_card = thin_cardinality(log_card, total_apart)
@@ -343,7 +342,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
         if apart is not None:
             log_w_missed = out.log_w_missed.copy()
             log_w_missed[rows] = np.log(np.exp(log_w_missed[rows]) + w_apart)
-            out = evolve(out, log_w_missed=log_w_missed,
+            out = replace(out, log_w_missed=log_w_missed,
                          log_card=add_cardinality(out.log_card, total_apart))
     else:
         out = phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, partitions,
@@ -395,7 +394,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     diag.capped_components = capped
     diag.components = len(reduced)
 
-    new_state = evolve(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
+    new_state = replace(state, mixture=reduced, log_card=out.log_card, next_label=next_label)
     candidates = extract(new_state, cfg, n_det, vis_of)
     new_state, candidates, diag.relabelled = relabel_jumps(state, new_state, candidates, cfg)
     new_state, candidates, record, diag.handed_over = hand_over(state, new_state, candidates,
@@ -410,7 +409,7 @@ def update_state(state: FilterState, points: np.ndarray, p_d: np.ndarray, cfg: T
     if len(forming):
         confirmed &= ~(find_sorted(np.sort(forming), candidates.label)[1]
                        & ~find_sorted(state.shown, candidates.label)[1])
-    shown = candidates if all_of(confirmed) else candidates.take(confirmed)
+    shown = candidates if np.all(confirmed) else candidates.take(confirmed)
     new_state = remember_shown(state, new_state, shown, cfg.extraction.handover_time, joined)
     # the filter's own estimates are what the shown record keeps; the report groups the
     # pieces of one contour
@@ -441,7 +440,7 @@ def _distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
     so a collision of sums can never drop a partition that differs.
     """
     sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=len(partitions))
-    if len(partitions) < 2 or not all_of(sizes):
+    if len(partitions) < 2 or not np.all(sizes):
         return partitions
     n_cells = len(cells)
     member_sum = np.add.reduceat(_mix64(np.concatenate(cells)),          # size: returns
@@ -502,7 +501,7 @@ def _held_p_d(state: FilterState, cfg: TrackerConfig, p_d: np.ndarray, shadowed:
     the outline, is most often the occluder in front of a hidden object, and holds
     nothing back.
     """
-    if not any_of(shadowed) or not len(state.reported):
+    if not np.any(shadowed) or not len(state.reported):
         return p_d, np.zeros(len(p_d), dtype=bool)
     mix = state.mixture
     confirmed = state.reported[state.confirmed_rows(cfg.extraction)]
@@ -581,7 +580,7 @@ def _implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
     # closed form's rounding)
     if not len(X):
         return coasted
-    if float(np.maximum.reduce(X[:, 0, 0] + X[:, 1, 1])) * (1.0 + 1e-9) < limit2:
+    if float(np.max(X[:, 0, 0] + X[:, 1, 1])) * (1.0 + 1e-9) < limit2:
         return coasted
     major2, _ = eig2(X)
     return (major2 > limit2) | coasted
@@ -599,12 +598,6 @@ def _chi2_2dof_ppf(p: float) -> float:
         return float(np.inf)           # log1p(-1) would warn of a division by zero
     return float(-2.0 * np.log1p(-p))
 
-
-@cached_tables(maxsize=64)
-def _log_constant(x: float) -> np.ndarray:
-    """``log x`` of a configured constant (a probability), computed once (a 0-d array: an
-    operand of array arithmetic, memo.constants)."""
-    return np.array(np.log(x))
 
 
 def _cell_claims(mix: Mixture, comp, cell, w_det, n_cells):
@@ -697,7 +690,7 @@ def _detections_per_label(mix, comp, cell, w_det, w_missed, stats):
 def _spread_inv(mix: Mixture, idx) -> np.ndarray:
     """Inverse of position covariance plus expected extent of components ``idx``: the
     metric in which a label's members are near their head (splitting, fusion)."""
-    return inv2(mix.P.take(idx, 0)[:, :2, :2] + mix.expected_extent(idx))
+    return inv2(mix.P[idx][:, :2, :2] + mix.expected_extent(idx))
 
 
 def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: float,
@@ -749,13 +742,13 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
         return mix, 0
     cand = np.array(cand, dtype=np.int64)
     heads = order[is_head][cand]
-    c = mix.m.take(heads, 0)[:, :2]
+    c = mix.m[heads][:, :2]
     inv_spread = _spread_inv(mix, heads)
     e = c[None, :, :] - c[:, None, :]                  # e[i, j] = c_j - c_i
-    d2 = einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
+    d2 = np.einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
     close = (np.maximum(d2, d2.T) <= merge_distance)
     np.fill_diagonal(close, False)
-    if not any_of(close):
+    if not np.any(close):
         return mix, 0
     scans = np.zeros(len(cand), dtype=np.int64)
     if reported is not None and len(reported):
@@ -785,7 +778,7 @@ def _fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: flo
     target[cand] = cand[into]
     label = mix.label.copy()
     label[order] = labels[target[group]]
-    return evolve(mix, label=label), fused
+    return replace(mix, label=label), fused
 
 
 def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next_label: int):
@@ -800,15 +793,15 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     if not len(mix):
         return mix, next_label
     order, is_head, group = mix.by_label()
-    if all_of(is_head):
+    if np.all(is_head):
         return mix, next_label                         # one component a label (most scans)
     heads = order[is_head]
     pos = mix.m[:, :2]
-    e = pos.take(order, 0) - pos.take(heads[group], 0)
-    d2 = einsum('ki,kij,kj->k', e, _spread_inv(mix, heads).take(group, 0), e)
+    e = pos[order] - pos[heads[group]]
+    d2 = np.einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
-    if not any_of(far):
+    if not np.any(far):
         return mix, next_label
     heavy = far & (mix.w >= split_weight)
     label = mix.label.copy()
@@ -817,7 +810,7 @@ def _split_labels(mix: Mixture, split_weight: float, merge_distance: float, next
     new = new[(-weight_key(mix.w[new])).argsort(kind='stable')]
     label[new] = next_label + np.arange(len(new))
     keep = ~(far & ~heavy)
-    return evolve(mix, label=label).take(keep), next_label + len(new)
+    return replace(mix, label=label).take(keep), next_label + len(new)
 
 
 def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None) -> Estimates:
@@ -853,9 +846,9 @@ def extract(state: FilterState, cfg: TrackerConfig, n_det=None, visibility=None)
     reported = chosen.tolist()
     return Estimates(
         label=chosen,
-        existence=np.minimum(np.maximum(lab_w, ZERO), ONE),
-        m=mix.m.take(best, 0),
-        P=mix.P.take(best, 0),
+        existence=np.minimum(np.maximum(lab_w, 0.0), 1.0),
+        m=mix.m[best],
+        P=mix.P[best],
         X=mix.expected_extent(best),
         rate=mix.expected_rate()[best],
         num_detections=np.array([n_det.get(x, 0) for x in reported], dtype=np.int64),
@@ -875,5 +868,5 @@ def filter_step(state: FilterState, points: np.ndarray, dt: float, cfg: TrackerC
     if callable(p_d):
         pd = np.asarray(p_d(pred.mixture), dtype=float)
     else:
-        pd = filled(len(pred.mixture), cfg.detection.p_d0 if p_d is None else p_d)
+        pd = np.full(len(pred.mixture), float(cfg.detection.p_d0 if p_d is None else p_d))
     return update_state(pred, points, pd, cfg, clutter_area=clutter_area)

@@ -44,7 +44,7 @@ def reported(state, labels, scans, origin, size=0.25):
     """``state`` with ``labels`` reported in the last ``scans`` scans in a row, returns
     updating each of them every time, first at ``origin`` (k, 2) with semi-major axis
     ``size``, and nothing travelled: their report record as ``record_reports`` keeps it."""
-    from extended_tracker.memo import evolve
+    from dataclasses import replace as evolve
 
     labels, scans = np.asarray(labels, np.int64), np.asarray(scans, np.int64)
     k = len(labels)

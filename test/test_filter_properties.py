@@ -651,35 +651,6 @@ def test_a_dense_blob_past_the_linkage_size_is_not_listed_pair_by_pair(monkeypat
     assert np.allclose(np.sort(height), z[z[:, 2] <= 0.8, 2], rtol=0, atol=1e-12)
 
 
-@given(point_sets(max_n=90))
-def test_single_linkage_equals_scipys_public_call(pts):
-    """
-    The partitioning's single linkage (scipy's C routine called without the wrapper)
-    equals ``linkage(y, 'single')`` exactly: the shortcut must not change a single merge.
-    """
-    from scipy.cluster.hierarchy import linkage
-    from scipy.spatial.distance import pdist
-
-    import extended_tracker.partition as P
-
-    y = pdist(pts)
-    if len(pts) >= 2:
-        assert np.array_equal(P.single_linkage(y, len(pts)), linkage(y, method='single'))
-
-
-@given(point_sets(max_n=150))
-def test_condensed_distances_equal_pdist_bit_for_bit(pts):
-    """
-    The compiled kernel's distances are ``pdist``'s exactly, at every size: merge
-    heights, and so the distance thresholds, cannot move.
-    """
-    from scipy.spatial.distance import pdist
-
-    from extended_tracker.partition import condensed_distances
-
-    assert np.array_equal(condensed_distances(pts), pdist(pts))
-
-
 @given(point_sets(max_n=90), st.floats(0.05, 1.5), st.booleans())
 def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     """
@@ -809,7 +780,7 @@ def test_seeded_generator_restarts_like_a_new_one():
 def test_extraction_reports_the_map_count_of_heaviest_labels_each_by_its_heaviest_part():
     """CPHD: the MAP count of labels, heaviest first, none lighter than min_existence
     (0.3); each reported at its heaviest component, with its label's weight."""
-    from extended_tracker.memo import evolve
+    from dataclasses import replace as evolve
     from extended_tracker.tracker import extract
 
     cfg = TrackerConfig()
@@ -941,7 +912,7 @@ def test_far_parts_of_a_label_become_new_objects_when_heavy_and_go_when_light():
 
 
 def test_a_reported_labels_existence_is_its_weight_clipped_to_one():
-    from extended_tracker.memo import evolve
+    from dataclasses import replace as evolve
     from extended_tracker.tracker import extract
 
     cfg = TrackerConfig()

@@ -510,19 +510,6 @@ def test_cached_tables_are_shared_read_only_and_equal_a_fresh_computation():
     assert fresh[0].flags.writeable
 
 
-def test_c_einsum_equals_numpys_wrapper():
-    """The core calls numpy's C einsum directly; on the contractions it uses it must give
-    np.einsum's values bit for bit (the wrapper only adds the unused ``optimize`` path)."""
-    from extended_tracker.ggiw import einsum
-
-    rng = np.random.default_rng(3)
-    e, X, K = rng.normal(size=(9, 2)), rng.normal(size=(9, 2, 2)), rng.normal(size=(9, 4, 2))
-    E, M = rng.normal(size=(5, 5, 2)), rng.normal(size=(5, 2, 2))
-    for spec, ops in (('ki,kij,kj->k', (e, X, e)), ('kij,kj->ki', (K, e)),
-                      ('ki,ij,kj->k', (e, X[0], e)), ('ijk,ikl,ijl->ij', (E, M, E))):
-        assert np.array_equal(einsum(spec, *ops), np.einsum(spec, *ops))
-
-
 def test_quad_form2_equals_the_matrix_product():
     """The closed-form ``e^T A e`` of the gates against the plain product, broadcast the two
     ways the gates use it (rounding differs: the closed form doubles the off-diagonal)."""

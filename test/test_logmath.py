@@ -1,12 +1,11 @@
-"""The package's log-sum-exp helpers against scipy.special.logsumexp (the oracle), and
-``neg_inf`` against ``np.full``."""
+"""The package's log-sum-exp helpers against scipy.special.logsumexp (the oracle)."""
 
 from hypothesis import given, strategies as st
 import numpy as np
 from scipy.special import logsumexp as scipy_lse
 
 from extended_tracker.logmath import (
-    filled, logsumexp, lse1, lse_last, LSE_REDUCE_MAX, neg_inf,
+    logsumexp, lse1, lse_last, LSE_REDUCE_MAX,
 )
 
 values = st.lists(st.one_of(st.floats(-800, 800), st.just(-np.inf)), min_size=1, max_size=12)
@@ -60,25 +59,3 @@ def test_empty_and_all_minus_infinity():
     assert np.all(lse_last(np.full((2, 3), -np.inf)) == -np.inf)
     assert np.all(lse_last(np.full((2, 2, 3), -np.inf)) == -np.inf)
     assert lse_last(np.zeros((3, 0))).tolist() == [-np.inf] * 3
-
-
-def test_neg_inf_is_a_new_writable_full_array():
-    for shape in (0, 3, (2, 5), (4, 0, 2), ()):
-        a, b = neg_inf(shape), neg_inf(shape)
-        expected = np.full(shape, -np.inf)
-        assert a.shape == expected.shape and a.dtype == expected.dtype
-        assert np.array_equal(a, expected)
-        if a.size:
-            a.flat[0] = 1.0                                 # its own memory
-            assert b.flat[0] == -np.inf
-
-
-def test_filled_is_np_full_as_floats():
-    """``filled`` stands in for ``np.full`` with float values (and config values that
-    are ints): the same doubles, float64, a new writable array each call."""
-    for shape, value in [(4, 2.5), ((2, 3), -1e-300), (0, 1.0), (3, 7), (5, np.inf)]:
-        a, b = filled(shape, value), filled(shape, value)
-        want = np.full(shape, float(value))
-        assert a.dtype == np.float64 and a.shape == want.shape and a.flags.writeable
-        np.testing.assert_array_equal(a, want)
-        assert a is not b and not np.shares_memory(a, b)

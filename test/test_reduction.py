@@ -6,7 +6,7 @@ import pytest
 from scipy import stats
 
 from extended_tracker.ggiw import IW_OFFSET, Mixture
-from extended_tracker.memo import evolve
+from dataclasses import replace as evolve
 from extended_tracker.reduction import merge_groups, reduce_mixture
 
 from mixtures import pedestrians

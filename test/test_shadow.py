@@ -13,7 +13,7 @@ import pytest
 from extended_tracker.config import from_dict
 from extended_tracker.cphd import add_cardinality, thin_cardinality
 from extended_tracker.ggiw import cell_stats, gate_pairs, IW_OFFSET, Mixture, PairUpdate
-from extended_tracker.memo import evolve
+from dataclasses import replace as evolve
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.scan import Header, ScanData, scan_to_points, Stamp
 from extended_tracker.sensing.shadow import detection_model, sparse_births

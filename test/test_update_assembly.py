@@ -23,7 +23,7 @@ import pytest
 from extended_tracker.config import from_dict
 from extended_tracker.cphd import cphd_update, phd_update, poisson_log_pmf
 from extended_tracker.ggiw import cell_stats, IW_OFFSET, log_miss_factor, Mixture, update_pairs
-from extended_tracker.memo import evolve
+from dataclasses import replace as evolve
 from extended_tracker.state import FilterState
 from extended_tracker.tracker import _birth_prior, sensor_noise, update_state
 

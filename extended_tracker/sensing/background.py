@@ -72,11 +72,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..memo import any_of, lean_init
 from .scan import ScanPoints
 
 
-@lean_init
 @dataclass(frozen=True)
 class BackgroundState:
     """Per-beam arrays of length B (message order)."""
@@ -123,9 +121,9 @@ def beams_near_tracks(scan: ScanPoints, track_centres: np.ndarray,
     dx = p[:, 0, None] - track_centres[None, :, 0]
     dy = p[:, 1, None] - track_centres[None, :, 1]
     within = np.sqrt(dx * dx + dy * dy) <= (track_radius + gate)[None, :]   # norm's bits
-    near[scan.beam[np.logical_or.reduce(within, axis=1)]] = True
-    if any_of(guard):
-        prot[scan.beam[np.logical_or.reduce(within[:, guard], axis=1)]] = True
+    near[scan.beam[np.any(within, axis=1)]] = True
+    if np.any(guard):
+        prot[scan.beam[np.any(within[:, guard], axis=1)]] = True
     return prot, near
 
 
@@ -182,7 +180,7 @@ def _alone(r, which, reach, margin, wrap=False):
     rs = r[which, None]
     rj = _padded(r, np.inf, wrap)[which[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
     near = (np.abs(rj - rs) <= margin) & _NOT_SELF & (rs <= reach)
-    return (rs[:, 0] <= reach[NEIGHBOUR_BEAMS + 1]) & ~np.logical_or.reduce(near, axis=1)
+    return (rs[:, 0] <= reach[NEIGHBOUR_BEAMS + 1]) & ~np.any(near, axis=1)
 
 
 def _continues(r, b, which, reach, margin, wrap=False):
@@ -209,8 +207,8 @@ def _continues(r, b, which, reach, margin, wrap=False):
             return out
         rs = r[idx, None]
         bj = _padded(b, np.nan, wrap)[idx[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
-        hit = np.logical_or.reduce((np.abs(bj - rs) <= margin) & (rs <= reach), axis=1)
-        if not any_of(hit):
+        hit = np.any((np.abs(bj - rs) <= margin) & (rs <= reach), axis=1)
+        if not np.any(hit):
             return out
         if run is None:
             run = _runs(r, which, reach[NEIGHBOUR_BEAMS + 1], margin, wrap)
@@ -311,7 +309,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         # spacing (no person; a mixed return at an edge, a thin pole)
         long = age >= cfg.forget_time - 1e-6
         thin = learn & nearer & ripe & ~lately & ~long
-        if any_of(thin):
+        if np.any(thin):
             which = thin.nonzero()[0]
             thin[which] = _alone(r, which, reach, margin, wrap)
         # a beam hidden before it was learned (no background, never seen free) that returns
@@ -322,7 +320,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         hidden = learn & ~known & ~free
         if tracked is not None:
             hidden &= ~tracked
-        if any_of(hidden):
+        if np.any(hidden):
             hidden = _continues(r, b, hidden, reach, margin, wrap)
         promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
         second = learn & ripe & lately & ~promote

@@ -10,12 +10,12 @@ messages and :class:`ScanData` all fit it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 import math
 
 import numpy as np
 
 from ..errors import ScanError
-from ..memo import cached_attribute, lean_init
 
 INVALID_KINDS = ('nan', 'pos_inf', 'neg_inf', 'below_min', 'above_max')
 # beam clutter density (ScanPoints.beam_clutter_log_density) is held at its value here
@@ -70,7 +70,6 @@ def frame_of(scan) -> str:
     return str(getattr(scan.header, 'frame_id', '') or '')
 
 
-@lean_init
 @dataclass(frozen=True)
 class ScanPoints:
     """
@@ -128,7 +127,7 @@ class ScanPoints:
         ``range_max / r`` times denser at range ``r`` than clutter spread evenly over the
         sector; taken as even, the returns near the scanner looked like an object there.
         """
-        r = np.sqrt(np.add.reduce(points * points, axis=1))
+        r = np.sqrt(np.sum(points * points, axis=1))
         return -np.log(max(self.fov, 1e-9) * max(self.range_max, 1e-6)
                        * np.maximum(r, BEAM_CLUTTER_MIN_RANGE))
 
@@ -139,7 +138,7 @@ class ScanPoints:
             return abs(float(self.angles[1] - self.angles[0]))
         return 0.0
 
-    @cached_attribute
+    @cached_property
     def sorted_beams(self) -> tuple[np.ndarray, np.ndarray, float]:
         """
         ``(order, angles[order], median spacing)``: the beams by ascending angle, computed
@@ -149,20 +148,20 @@ class ScanPoints:
         ang = self.angles[order]
         return order, ang, _median(ang[1:] - ang[:-1]) if len(ang) > 1 else 0.0
 
-    @cached_attribute
+    @cached_property
     def sorted_ranges(self) -> np.ndarray:
         """``ranges`` in the order of :attr:`sorted_beams` (the p_D model reads them twice
         a scan)."""
         return self.ranges[self.sorted_beams[0]]
 
-    @cached_attribute
+    @cached_property
     def full_turn(self) -> bool:
         """The beams go all the way round (a 360 degree scanner): no edge of the field of
         view, the last beam next to the first."""
         step = self.angle_step
         return step > 0 and self.angle_hi - self.angle_lo + 1.5 * step >= 2 * math.pi
 
-    @cached_attribute
+    @cached_property
     def wrapped_beams(self) -> tuple[np.ndarray, np.ndarray]:
         """
         ``(order, angles)`` of :attr:`sorted_beams` with half a turn of beams repeated
@@ -183,7 +182,7 @@ class ScanPoints:
         """
         x = (0.5 * (self.angle_lo + self.angle_hi) - bearing) / (2 * math.pi)
         # no turn rounds to anything but 0 (halves round to even, so |x| <= 1/2 is none)
-        if np.maximum.reduce(np.abs(x), axis=None, initial=0.0) <= 0.5:
+        if np.max(np.abs(x), axis=None, initial=0.0) <= 0.5:
             return bearing
         return bearing + (2 * math.pi) * np.round(x)
 

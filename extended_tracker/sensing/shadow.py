@@ -22,15 +22,13 @@ import math
 
 import numpy as np
 
-from ..ggiw import einsum, inv2, Mixture, quad_form2
-from ..memo import any_of, constants, HALF, lean_init, ONE, TWO, ZERO
+from ..ggiw import inv2, Mixture, quad_form2
 from .scan import ScanPoints
 
 GATHER_WIDTH = 64        # narrowest class of intervals counted in one gather (beams)
-_MIN_SCALE, = constants(0.05)       # least visible fraction a rate is scaled by
+MIN_RATE_SCALE = 0.05       # least visible fraction a rate is scaled by
 
 
-@lean_init
 @dataclass(frozen=True)
 class Visibility:
     """Per-component detection model of one scan (arrays of length n)."""
@@ -69,17 +67,17 @@ def _geometry(m: np.ndarray, X: np.ndarray, P: np.ndarray, widen_sigmas: float,
     np.cos(bearing, out=e[:, 0])
     np.sin(bearing, out=e[:, 1])
     u = e[:, ::-1] * _ACROSS                                     # across it
-    along = np.sqrt(np.maximum(einsum('ki,kij,kj->k', e, X, e), ZERO))
-    across = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, X, u), ZERO))
-    sigma = np.sqrt(np.maximum(einsum('ki,kij,kj->k', u, P[:, :2, :2], u), ZERO))
+    along = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', e, X, e), 0.0))
+    across = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, X, u), 0.0))
+    sigma = np.sqrt(np.maximum(np.einsum('ki,kij,kj->k', u, P[:, :2, :2], u), 0.0))
     half = np.empty((2, k))
     half[0] = across
     np.add(across, np.minimum(widen_sigmas * sigma, max_widen), out=half[1])
     # asin(half / r) where the sensor lies outside the half-width, else pi / 2 (asin 1;
     # the division is skipped there: r may be 0)
     ratio = np.divide(half, r, out=np.ones((2, k)), where=r > half)
-    half_angle = np.arcsin(np.minimum(np.maximum(ratio, ZERO), ONE))
-    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, ZERO), r + along, r, u
+    half_angle = np.arcsin(np.minimum(np.maximum(ratio, 0.0), 1.0))
+    return bearing, half_angle[0], half_angle[1], np.maximum(r - along, 0.0), r + along, r, u
 
 
 _ACROSS = np.array([-1.0, 1.0])      # (cos, sin) reversed times this is (-sin, cos)
@@ -142,7 +140,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # just below the bearing or the one above it (where an empty interval's lo points),
     # whichever is nearer
     empty = hi <= lo
-    if any_of(empty):
+    if np.any(empty):
         e = empty.nonzero()[0]
         up = np.minimum(lo[e], len(ang) - 1)
         down = np.maximum(up - 1, 0)
@@ -154,7 +152,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
     # intervals whose nearest return is not nearer than the object are all free: their
     # count is the width and their free beams are all their beams. Worth it when the
     # intervals hold more beams than the range-minimum table costs (B log2 B).
-    if np.add.reduce(width) > len(ang) * math.log2(max(len(ang), 2)):
+    if np.sum(width) > len(ang) * math.log2(max(len(ang), 2)):
         classes = _width_classes(width, _range_min(rng, lo, hi) >= thr)
     elif width.max() <= GATHER_WIDTH:
         classes = [None]                   # the usual case: every interval in one gather
@@ -191,7 +189,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
                 free_sum = np.where(blocked[rows], 0.0, a).sum(axis=1)
                 free_turn[rows if ni is None else ni[rows]] = (
                     free_sum / n_free[rows] - a.sum(axis=1) / width_i[rows])
-    frac_visible = ONE - blocked_n / width
+    frac_visible = 1.0 - blocked_n / width
     # part of the interval outside the field of view is not seen at all: the lengths cut
     # off each end are exactly 0 where the field of view holds it
     cut_lo = cut_hi = 0.0
@@ -201,8 +199,8 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
         step = max(step, 1e-9)
         start, end = bearing - half_angle, bearing + half_angle
         fov_lo, fov_hi = scan.angle_lo - step / 2, scan.angle_hi + step / 2
-        if (np.minimum.reduce(start, initial=np.inf) >= fov_lo
-                and np.maximum.reduce(end, initial=-np.inf) <= fov_hi):
+        if (np.min(start, initial=np.inf) >= fov_lo
+                and np.max(end, initial=-np.inf) <= fov_hi):
             # every interval within the field of view (most scans): nothing cut off, the
             # lengths below would be exactly 0 and the factor exactly 1
             visible = frac_visible
@@ -211,7 +209,7 @@ def _visible_fraction(bearing, half_angle, r_near, scan: ScanPoints, beam_range,
                                                frac_visible)
     if not with_shift:
         return visible, None
-    shift = np.where(visible > ZERO, free_turn + HALF * (cut_lo - cut_hi), ZERO)
+    shift = np.where(visible > 0.0, free_turn + 0.5 * (cut_lo - cut_hi), 0.0)
     if shift_rows is not None:
         shift[shift_rows:] = 0.0
     return visible, shift
@@ -309,15 +307,15 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     at_sensor = _holds_sensor(mix.m, extent)
     sparse = _sparse(mix, half, plain, step, det.min_fill)
     visible = _seen(visible, r_near, scan, det)
-    rate_scale = np.maximum(visible, _MIN_SCALE) if det.scale_rate_by_visibility else None
-    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == ZERO,
+    rate_scale = np.maximum(visible, MIN_RATE_SCALE) if det.scale_rate_by_visibility else None
+    return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0,
                       at_sensor, sparse)
 
 
 def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
     """Whether the sensor (the origin) lies within each outline, the ellipse of the
     expected extent ``extent`` about the centre ``m[:, :2]``."""
-    return quad_form2(m[:, :2], inv2(extent)) < ONE
+    return quad_form2(m[:, :2], inv2(extent)) < 1.0
 
 
 # visible fraction of its own extent from which the scan shows an object's returns (all
@@ -359,7 +357,7 @@ def _expects_too_few(rate: np.ndarray, half: np.ndarray, step: float,
     """Whether each expected rate is below ``min_fill`` of the beams, ``2 half / step``, an
     extent of half-angle ``half`` spans (the test of :func:`_sparse`, for tracks and births
     alike)."""
-    return rate < min_fill * (TWO * half / step)
+    return rate < min_fill * (2.0 * half / step)
 
 
 def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
@@ -400,7 +398,7 @@ def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
                                                   births.P[maybe], 0.0, 0.0)
     at_sensor = _holds_sensor(births.m[maybe], extent[maybe])
     low = _expects_too_few(rate[maybe], half, step, det.min_fill)
-    if any_of(low):
+    if np.any(low):
         rows = low.nonzero()[0]
         plain, _ = _visible_fraction(scan.in_scan_frame(bearing[rows]), half[rows],
                                      r_near[rows], scan, scan.ranges, det.shadow_margin,
@@ -431,11 +429,11 @@ def _centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> np.ndar
     line, where the side's thin extent holds it to centimetres, and the track's velocity
     turned off the car's heading until the gate let go of its returns.
     """
-    if not any_of(shift != ZERO):
+    if not np.any(shift != 0.0):
         # nothing part hidden (most scans): the offsets are all 0 without the products
         return np.zeros((len(shift), 2))
-    Xu = einsum('kij,kj->ki', X, u)
-    uXu = einsum('ki,ki->k', u, Xu)
+    Xu = np.einsum('kij,kj->ki', X, u)
+    uXu = np.einsum('ki,ki->k', u, Xu)
     # an object thin across the line of sight (seen end on) has no width to shift along
     scale = np.divide(shift, uXu, out=np.zeros(len(shift)), where=uXu > 1e-12)
     return Xu * scale[:, None]
@@ -445,7 +443,7 @@ def _seen(visible, r_near, scan: ScanPoints, det) -> np.ndarray:
     """The visible fraction, 0 beyond the scan's range or under ``min_visibility``."""
     # one selection: a fraction the range test zeroes is under the minimum, or is the 0
     # the minimum keeps
-    return np.where((r_near > scan.range_max) | (visible < det.min_visibility), ZERO, visible)
+    return np.where((r_near > scan.range_max) | (visible < det.min_visibility), 0.0, visible)
 
 
 def _estimate_shadow(bearing, half, r_near, label, occluders, scan, det):
