@@ -6,13 +6,20 @@ PY := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
 unexport ROS_LOCALHOST_ONLY
 
-.PHONY: setup test demo real bench results config clean
+.PHONY: setup test test-fast shape demo real bench results config clean
 
 setup:
 	@EXTENDED_TRACKER_VENV=$(VENV) bash tools/bootstrap.sh
 
 test: setup
 	@unset ROS_LOCALHOST_ONLY; $(PY) -m pytest -q test
+
+# everything but the tests marked slow (real recordings, soaks): under a minute
+test-fast: setup
+	@unset ROS_LOCALHOST_ONLY; $(PY) -m pytest -q -m 'not slow' test
+
+shape:
+	@python3 tools/check_shape.py
 
 REAL := ../shared/data/real
 TRACKER := $(VENV)/bin/extended-tracker
@@ -38,6 +45,7 @@ results: setup
 config: setup
 	$(PY) -m extended_tracker.configio > config/tracker.yaml
 	$(PY) -m extended_tracker.configio leg_height > config/leg_height.yaml
+	$(PY) -m extended_tracker.configio --readme README.md
 
 clean:
 	rm -rf build out .pytest_cache .hypothesis

@@ -15,12 +15,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from pathlib import Path
 import signal
+import sys
 import threading
 
 import numpy as np
-from pathlib import Path
-import sys
 
 from . import __version__, stopping
 from .errors import BagError, ConfigError, ExtendedTrackerError
@@ -43,7 +43,7 @@ REAL_PRESETS = {
 }
 
 
-def _config(path, preset_name=None):
+def load_config(path, preset_name=None):
     from .config import preset, TrackerConfig
 
     if path is not None and preset_name is not None:
@@ -58,9 +58,9 @@ def _config(path, preset_name=None):
 
 
 def cmd_replay(args) -> int:
-    from .replay import replay
+    from .bag.replay import replay
 
-    cfg = _config(args.config, args.preset)
+    cfg = load_config(args.config, args.preset)
     summary = replay(args.input, args.output, cfg, args.scan_topic, args.plot,
                      progress=not args.quiet)
     for line in summary.lines():
@@ -84,7 +84,7 @@ def cmd_simulate(args) -> int:
 
 def _replay_output(bag: Path) -> bool:
     """Whether ``bag`` is a ROS 2 bag folder written by ``replay`` (it holds the tracks)."""
-    from .bagio import TRACKS_TYPE
+    from .bag.bagio import TRACKS_TYPE
 
     meta = bag / 'metadata.yaml'
     try:
@@ -94,7 +94,7 @@ def _replay_output(bag: Path) -> bool:
 
 
 def cmd_real(args) -> int:
-    from .replay import replay
+    from .bag.replay import replay
 
     data = Path(args.data)
     out = Path(args.out)
@@ -114,7 +114,7 @@ def cmd_real(args) -> int:
               'nothing to do', file=sys.stderr)
         return 0
     out.mkdir(parents=True, exist_ok=True)
-    given = _config(args.config) if args.config else None
+    given = load_config(args.config) if args.config else None
     print(f'{"bag":48s} {"scans":>6s} {"det/scan":>8s} {"ids":>5s} {"moving":>6s} '
           f'{"mean n":>6s} {"ms med":>7s} {"ms p99":>7s}  config')
     failed = 0
@@ -131,7 +131,7 @@ def cmd_real(args) -> int:
 
             shutil.rmtree(target)
         name = REAL_PRESETS.get(label)
-        cfg = given or _config(None, name)
+        cfg = given or load_config(None, name)
         try:
             s = replay(bag, target, cfg, REAL_TOPICS.get(label), out / f'{label}.png',
                        progress=False)
@@ -156,11 +156,11 @@ def cmd_real(args) -> int:
 
 
 def cmd_evaluate(args) -> int:
-    from .evaluate import evaluate_bag, GOSPA_C, GOSPA_P
+    from .evaluation.evaluate import evaluate_bag, GOSPA_C, GOSPA_P
 
     plot = None
     if args.plot:
-        from .imagefile import image_path
+        from .report.imagefile import image_path
 
         plot = image_path(args.plot)            # the name written (a .png added)
     score, per, stamps = evaluate_bag(args.output_bag, args.truth, plot)
@@ -185,7 +185,7 @@ def cmd_evaluate(args) -> int:
 
 
 def cmd_results(args) -> int:
-    from .evaluate import results_table, scenario_notes, write_readme_results
+    from .evaluation.evaluate import results_table, scenario_notes, write_readme_results
 
     if args.readme:
         write_readme_results(Path(args.readme))
@@ -198,7 +198,7 @@ def cmd_results(args) -> int:
 
 
 def cmd_bench(args) -> int:
-    from .bench import main as bench_main
+    from .evaluation.bench import main as bench_main
 
     # the benchmark parses its own options (``bench --help`` lists them): one definition
     return bench_main(args.passed_on)

@@ -407,7 +407,7 @@ PRESETS: dict[str, dict] = {
     # was shown for 1-14 scans and wandered onto the people near it. confirm_detections 3
     # (returns in three scans before an id is shown) took the leg_tracker demo from 37
     # ids to 18, joined two ids of one walker there into one, and left obstacle_detector
-    # with its one moving object (doc/history.md).
+    # with its one moving object.
     'leg_height': {'partition': {'d_min': 0.45},
                    'extraction': {'max_speed': 3.0, 'confirm_detections': 3},
                    'reduction': {'pair_scans': 3}},

@@ -10,7 +10,6 @@ import yaml
 from .config import from_dict, from_flat, TrackerConfig
 from .errors import ConfigError
 
-
 NODE_NAME = 'extended_tracker'
 # parameters every ROS 2 node has (rclpy declares them), not the tracker's: a node's
 # parameter file may set them, and the offline tools pass over them
@@ -237,7 +236,7 @@ def preset_yaml(name: str) -> str:
     """
     from dataclasses import fields
 
-    from .config import PRESETS, preset
+    from .config import preset, PRESETS
 
     cfg = preset(name)                                 # validates the preset
     base = TrackerConfig()
@@ -260,7 +259,61 @@ def preset_yaml(name: str) -> str:
     return '\n'.join(lines) + '\n'
 
 
+PARAMETERS_BEGIN = '<!-- parameters:begin -->'
+PARAMETERS_END = '<!-- parameters:end -->'
+
+
+def parameter_table() -> str:
+    """
+    The README's parameter table: every parameter of the node with its default, unit,
+    valid range and description, from the same field metadata the node's parameter
+    descriptors are made of (``make config`` writes it).
+    """
+    from .config import iter_leaves
+
+    rows = ['| parameter | default | unit, range | description |', '|---|---|---|---|']
+    for name, f, value in iter_leaves(TrackerConfig()):
+        meta = f.metadata
+        rows.append(f'| `{name}` | `{_yaml_value(value)}` | {_range_text(meta)} | '
+                    f'{meta["description"]} |')
+    return '\n'.join(rows)
+
+
+def _range_text(meta: dict) -> str:
+    """Unit and range of a field: ``m, (0, 2]``, ``one of cphd, phd`` or empty."""
+    if meta.get('choices'):
+        return 'one of ' + ', '.join(meta['choices'])
+    lo, hi = meta.get('min'), meta.get('max')
+    span = ''
+    if lo is not None or hi is not None:
+        left = '(' if meta.get('lo_open') else '['
+        span = f'{left}{_number(lo, "-inf")}, {_number(hi, "inf")}]'
+    return ', '.join(x for x in (meta.get('unit', ''), span) if x)
+
+
+def _number(x, none: str) -> str:
+    """A range limit, short: ``0.5``, ``1e+04``; ``none`` for no limit."""
+    return none if x is None else f'{x:g}'
+
+
+
+def write_readme_parameters(readme) -> None:
+    """Replace the README's parameter table between its markers."""
+    from pathlib import Path
+
+    path = Path(readme)
+    text = path.read_text()
+    if PARAMETERS_BEGIN not in text or PARAMETERS_END not in text:
+        raise ConfigError(f'{path} has no {PARAMETERS_BEGIN} ... {PARAMETERS_END} markers')
+    head, rest = text.split(PARAMETERS_BEGIN, 1)
+    _, tail = rest.split(PARAMETERS_END, 1)
+    path.write_text(f'{head}{PARAMETERS_BEGIN}\n{parameter_table()}\n{PARAMETERS_END}{tail}')
+
+
 if __name__ == '__main__':
     import sys
 
-    sys.stdout.write(preset_yaml(sys.argv[1]) if len(sys.argv) > 1 else default_yaml())
+    if len(sys.argv) > 2 and sys.argv[1] == '--readme':
+        write_readme_parameters(sys.argv[2])
+    else:
+        sys.stdout.write(preset_yaml(sys.argv[1]) if len(sys.argv) > 1 else default_yaml())

@@ -9,9 +9,9 @@ from extended_tracker.config import from_dict
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.background import update_background
 from extended_tracker.sensing.scan import scan_to_points
-from extended_tracker.sim.laser import LaserSpec, Scene, simulate, SimObject, walls_scene
-from extended_tracker.identity import record_reports
-from extended_tracker.state import FilterState
+from extended_tracker.sim.laser import LaserSpec, Scene, SimObject, simulate, walls_scene
+from extended_tracker.tracks.identity import record_reports
+from extended_tracker.tracks.record import TrackRecord
 
 from mixtures import estimates
 
@@ -152,10 +152,10 @@ def test_neighbours_are_the_beams_within_margin_across_at_the_range():
     """Beams k apart at range r are neighbours while the arc between them, r k step, is
     at most margin: checked against the chord 2 r sin(k step / 2) a little inside and
     outside that range for every offset."""
-    from extended_tracker.sensing.background import _OFFSETS, _reach
+    from extended_tracker.sensing.background import _OFFSETS, reach_of
 
     step, margin = np.radians(0.5), 0.15
-    reach = _reach(step, margin)
+    reach = reach_of(step, margin)
     for k, limit in zip(_OFFSETS.tolist(), reach.tolist()):
         if k == 0:
             assert limit == np.inf
@@ -192,20 +192,19 @@ def test_object_that_appears_and_never_moves_in_open_space_is_learned():
     assert all(res.diagnostics['background_dropped'] > 0 for _, res in hist[60:])
 
 
-def _report(state, x, detections=5, semi=None):
-    """``state``'s report record after label 7 is extracted at (x, 0) with ``detections``
+def _report(record, x, detections=5, semi=None):
+    """The report ``record`` after label 7 is extracted at (x, 0) with ``detections``
     returns (and a semi-major axis ``semi``, 0.1 m semi-minor, if given)."""
     est = estimates([7], [[x, 0.0]])
     est.num_detections[:] = detections
     if semi is not None:
         est.X[:] = np.diag([semi ** 2, 0.01])
-    return record_reports(state, FilterState(state.mixture, state.log_card, dt=0.1), est)
+    return record_reports(record, est)
 
 
 def test_travel_that_protects_counts_only_scans_with_returns():
     """A label coasting on its predicted velocity has not moved: its drift is not travel."""
-    state = FilterState.initial(from_dict({}))
-    state = _report(state, 0.0, 5)
+    state = _report(TrackRecord(), 0.0, 5)
     for k in range(1, 11):                               # drifts 1 m with no returns
         state = _report(state, 0.1 * k, 0)
     assert state.reported_scans[0] == 11 and state.reported_hits[0] == 1
@@ -228,7 +227,7 @@ def test_travel_is_counted_beyond_the_first_extent():
     counts beyond the semi-major axis the label was first reported with.
     """
     ex = from_dict({'extraction': {'confirm_detections': 0}}).extraction
-    state = _report(FilterState.initial(from_dict({})), 0.0, semi=0.5)
+    state = _report(TrackRecord(), 0.0, semi=0.5)
     for i, x in enumerate(np.linspace(0.05, 0.55, 11)):  # the centre creeps 0.55 m
         state = _report(state, x, semi=0.3)                # while the extent shrinks
         if i == 3:                                         # 0.2 m from where it began
@@ -707,7 +706,7 @@ def test_a_scan_at_other_angles_starts_the_background_afresh():
     assert keep.all() and np.isnan(turned.background).all()
 
 def _continues_ring_by_ring(r, b, which, reach, margin, wrap):
-    """The plain reading of ``_continues``: one ring of neighbours a round, beam by beam."""
+    """The plain reading of ``continues_surface``: one ring of neighbours a round, beam by beam."""
     from extended_tracker.sensing.background import NEIGHBOUR_BEAMS
 
     n = len(r)
@@ -735,7 +734,7 @@ def _continues_ring_by_ring(r, b, which, reach, margin, wrap):
 @pytest.mark.parametrize('seed', range(40))
 def test_revealed_stretches_are_found_as_ring_by_ring(seed):
     """Runs taken whole give what finding one ring of neighbours a round gives."""
-    from extended_tracker.sensing.background import _continues, _reach, NEIGHBOUR_BEAMS
+    from extended_tracker.sensing.background import continues_surface, NEIGHBOUR_BEAMS, reach_of
 
     rng = np.random.default_rng(seed)
     n = int(rng.integers(2, 60))
@@ -744,13 +743,13 @@ def test_revealed_stretches_are_found_as_ring_by_ring(seed):
     r[rng.random(n) < 0.1] = np.inf
     b = np.where(rng.random(n) < 0.3, r + rng.normal(0, 0.1, n), np.nan)
     which = np.isnan(b) & np.isfinite(r) & (rng.random(n) < 0.9)
-    reach = _reach(np.deg2rad(rng.choice([0.25, 0.5, 1.0, 3.0])), 0.15)
+    reach = reach_of(np.deg2rad(rng.choice([0.25, 0.5, 1.0, 3.0])), 0.15)
     if seed % 2 == 0:
         # about where beams one apart stop being within margin across: runs end there
         shift = 0.97 * reach[NEIGHBOUR_BEAMS + 1] - 3.0
         r, b = r + shift, b + shift
     for wrap in (False, True):
-        got = _continues(r, b, which, reach, 0.15, wrap)
+        got = continues_surface(r, b, which, reach, 0.15, wrap)
         assert np.array_equal(got, _continues_ring_by_ring(r, b, which, reach, 0.15, wrap))
 
 

@@ -6,8 +6,8 @@ import re
 import numpy as np
 import pytest
 
-from extended_tracker.bench import (bench_filter, bench_profile, exp_ns, machine_line,
-                                    reference_ms)
+from extended_tracker.evaluation.bench import bench_filter, bench_profile
+from extended_tracker.evaluation.timing import exp_ns, machine_line, reference_ms
 
 
 def test_empty_scan_row_is_the_fixed_cost(capsys):
@@ -23,15 +23,15 @@ def test_profile_names_the_stages(capsys):
     bench_profile(n=4, runs=1, run_scans=12, top=40)
     out = capsys.readouterr().out
     assert '4 pedestrians, 22 steps' in out
-    for stage in ('update_state', 'build_partitions', 'cphd_update', 'update_pairs',
-                  'reduce_mixture', 'predict_state', 'extract'):
+    for stage in ('pair_updates', 'update', 'build_partitions', 'cphd_update', 'update_pairs',
+                  'reduce_mixture', 'predict_state', 'manage_tracks', 'extract'):
         assert f'({stage})' in out, stage
 
 
 def test_cli_passes_the_bench_options_on(monkeypatch):
     """`extended-tracker bench ...` hands every option to the benchmark's own parser."""
-    import extended_tracker.bench as bench
     from extended_tracker import cli
+    import extended_tracker.evaluation.bench as bench
 
     seen = []
     monkeypatch.setattr(bench, 'main', lambda argv: seen.append(argv) or 0)
@@ -59,10 +59,11 @@ def test_other_commands_still_refuse_unknown_options(capsys):
     assert 'unrecognized arguments: --bogus' in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_target_rounds_report_every_case(capsys):
     """Each target case is timed once per round; the table gives the rounds' spread and
     how many of them met the case's targets."""
-    from extended_tracker.bench import bench_targets
+    from extended_tracker.evaluation.bench import bench_targets
 
     pooled = bench_targets(rounds=2, scans=10, run_scans=10, warm=2)
     out = capsys.readouterr().out
@@ -104,7 +105,7 @@ def test_growth_exponent_recovers_a_power_law():
     """Oracle: y = a x^k gives k exactly, whatever a; linear growth gives 1."""
     import numpy as np
 
-    from extended_tracker.bench import growth_exponent
+    from extended_tracker.evaluation.timing import growth_exponent
 
     x = np.array([3.0, 28.0, 180.0, 740.0, 1900.0])
     for k in (0.3, 1.0, 2.0):
@@ -116,7 +117,7 @@ def test_report_growth_fits_the_time_above_the_fixed_cost(capsys):
     ``5 (objects x cells)^0.5``, so the time above the fixed cost goes as detections^1.2:
     the fits recover both exponents; the N = 0 row is left out, though timed a little
     above the fixed cost (objects x cells is 0 there: no power law passes through it)."""
-    from extended_tracker.bench import report_growth
+    from extended_tracker.evaluation.timing import report_growth
 
     fixed = 0.7
     cases = [(1, 3), (4, 7), (10, 18), (20, 37), (50, 38)]
@@ -132,7 +133,7 @@ def test_report_growth_fits_the_time_above_the_fixed_cost(capsys):
 
 
 def test_report_growth_says_when_it_cannot_fit(capsys):
-    from extended_tracker.bench import report_growth
+    from extended_tracker.evaluation.timing import report_growth
 
     k_oc, k_d = report_growth([(0, 0.0, 0.0, 1.0), (4, 46.0, 7.0, 0.9)], 1.0)
     assert k_oc != k_oc and k_d != k_d                  # NaN: nothing to fit
@@ -140,7 +141,7 @@ def test_report_growth_says_when_it_cannot_fit(capsys):
 
 
 def test_detections_sweep_prints_its_cases(capsys):
-    from extended_tracker.bench import bench_detections
+    from extended_tracker.evaluation.bench import bench_detections
 
     rows = bench_detections(scans=6, cases=((2, 721),), warm=2, run_scans=6)
     (n, detections, cells, median_ms), = rows
@@ -157,7 +158,7 @@ def test_scaling_png_has_the_growth_panel(tmp_path, monkeypatch):
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    import extended_tracker.bench as bench
+    import extended_tracker.evaluation.bench as bench
 
     monkeypatch.setattr(bench, '_median_step', lambda scene, cfg, scans: 1.0)
     seen = []
@@ -171,7 +172,7 @@ def test_scaling_png_has_the_growth_panel(tmp_path, monkeypatch):
 
 
 def test_memory_run_prints_the_resident_memory_and_the_peak(capsys):
-    from extended_tracker.bench import bench_memory
+    from extended_tracker.evaluation.bench import bench_memory
 
     bench_memory(3)
     out = capsys.readouterr().out
@@ -185,8 +186,9 @@ def test_memory_run_prints_the_resident_memory_and_the_peak(capsys):
     assert 'growth from scan 0 to 2: ' in out
 
 
+@pytest.mark.slow
 def test_memory_growth_is_measured_after_the_first_1000_scans(capsys):
-    from extended_tracker.bench import bench_memory
+    from extended_tracker.evaluation.bench import bench_memory
 
     bench_memory(1002)
     out = capsys.readouterr().out
@@ -201,8 +203,8 @@ def test_memory_growth_is_measured_after_the_first_1000_scans(capsys):
 def test_bench_refuses_a_bad_count_before_running_anything(option, capsys, monkeypatch):
     """A negative or non-numeric count is a usage error at once (the memory run's
     negative count used to crash with an IndexError after minutes of cases)."""
-    import extended_tracker.bench as bench
     from extended_tracker import cli
+    import extended_tracker.evaluation.bench as bench
 
     monkeypatch.setattr(bench, 'machine_line', lambda: pytest.fail('a case ran'))
     with pytest.raises(SystemExit) as stop:
@@ -217,8 +219,8 @@ def test_bench_refuses_a_scaling_picture_name_before_running_anything(png, why, 
                                                                       monkeypatch, tmp_path):
     """The scaling PNG is drawn last: a name savefig cannot write ended minutes of cases
     in a traceback."""
-    import extended_tracker.bench as bench
     from extended_tracker import cli
+    import extended_tracker.evaluation.bench as bench
 
     monkeypatch.setattr(bench, 'machine_line', lambda: pytest.fail('a case ran'))
     assert cli.main(['bench', '--png', str(tmp_path / png)]) == 2
@@ -229,9 +231,9 @@ def test_bench_refuses_a_scaling_picture_name_before_running_anything(png, why, 
 def test_stats_are_the_median_the_99th_percentile_and_the_maximum_in_ms():
     """Oracle: 1 to 100 ms: median 50.5, p99 99.01 (linear between order statistics, as
     numpy's default percentile), maximum 100."""
-    from extended_tracker.bench import _stats
+    from extended_tracker.evaluation.timing import timing_stats
 
-    med, p99, mx = _stats(np.arange(100, 0, -1) * 1e-3)
+    med, p99, mx = timing_stats(np.arange(100, 0, -1) * 1e-3)
     assert (med, mx) == pytest.approx((50.5, 100.0), abs=1e-9)
     assert p99 == pytest.approx(99.01, abs=1e-9)
 
@@ -244,7 +246,7 @@ def test_a_round_meets_a_case_when_its_median_and_its_p99_are_both_within_target
     S3: p99 25): 98 steps at one time and 2 at another give that median and that p99.
     S1's median is within and its p99 over: not met.
     """
-    import extended_tracker.bench as bench
+    import extended_tracker.evaluation.bench as bench
 
     made = {4: (1.4, 3.0), 10: (5.1, 5.2), 'S1': (1.9, 6.5), 'S2': (5.9, 19.0),
             'S3': (10.0, 26.0)}
@@ -274,11 +276,11 @@ def test_the_memory_figures_are_the_kernels_resident_set_in_mib():
     rusage high-water mark (kB), in MiB."""
     import resource
 
-    from extended_tracker.bench import _peak_rss_mb, _rss_mb
+    from extended_tracker.evaluation.timing import peak_rss_mb, rss_mb
 
     status = dict(line.split(':', 1) for line in Path('/proc/self/status').read_text()
                   .splitlines())
     now = int(status['VmRSS'].split()[0]) / 1024
-    assert _rss_mb() == pytest.approx(now, abs=2.0)
-    assert _peak_rss_mb() == pytest.approx(
+    assert rss_mb() == pytest.approx(now, abs=2.0)
+    assert peak_rss_mb() == pytest.approx(
         resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, abs=2.0)

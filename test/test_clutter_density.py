@@ -11,14 +11,15 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.evaluate import _merge, SCENARIOS, truth_of, view_of
+from extended_tracker.evaluation.evaluate import merge_overrides, SCENARIOS, truth_of, view_of
+from extended_tracker.filter.state import predict_state
+from extended_tracker.filter.update import SensorTerms
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.scan import (
     BEAM_CLUTTER_MIN_RANGE, Header, scan_to_points, ScanData, Stamp,
 )
 from extended_tracker.sim import laser
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import predict_state, update_state
+from extended_tracker.tracker import TrackerState, update_step
 
 from mixtures import assert_same_posterior
 
@@ -79,18 +80,18 @@ def test_the_density_integrates_to_one_less_the_floor_near_the_scanner():
 def test_an_even_density_given_per_detection_is_the_default_update():
     cfg = from_dict({})
     rng = np.random.default_rng(8)
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     area = 120.0
     for k in range(12):
         pts = np.vstack([np.array([2.0 + 0.1 * k, 1.0]) + rng.normal(0, 0.1, (9, 2)),
                          np.array([4.0, -1.0 - 0.1 * k]) + rng.normal(0, 0.1, (7, 2)),
                          rng.uniform(-5, 5, (2, 2))])
-        pred = predict_state(state, 0.1, cfg)
-        p_d = np.full(len(pred.mixture), 0.9)
+        pred = predict_state(state.filter, 0.1, cfg)
+        sensor = SensorTerms(np.full(len(pred.mixture), 0.9))
         even = np.full(len(pts), -np.log(area))
-        a, est_a, _ = update_state(pred, pts, p_d, cfg, clutter_area=area)
-        b, est_b, _ = update_state(pred, pts, p_d, cfg, clutter_area=area,
-                                   clutter_log_density=even)
+        a, est_a, _ = update_step(state, pred, pts, sensor, cfg, 0.1, clutter_area=area)
+        b, est_b, _ = update_step(state, pred, pts, sensor, cfg, 0.1, clutter_area=area,
+                                  clutter_log_density=even)
         assert_same_posterior(b, a)
         assert est_b.label.tolist() == est_a.label.tolist()
         state = a
@@ -103,7 +104,7 @@ def run_clutter_scene(density, min_fill=None, seed=None):
     change = {'model': {'clutter_density': density}}
     if min_fill is not None:
         change['detection'] = {'min_fill': min_fill}
-    cfg = from_dict(_merge(overrides, change))
+    cfg = from_dict(merge_overrides(overrides, change))
     state = PipelineState.initial(cfg)
     false = found = 0
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
@@ -116,6 +117,7 @@ def run_clutter_scene(density, min_fill=None, seed=None):
     return false, found
 
 
+@pytest.mark.slow
 def test_per_beam_clutter_is_not_tracked_at_the_scanner():
     """15 clutter returns a scan on random beams: some 1.2 a scan within a metre of the
     scanner, where an even spread expects 0.1. Told that, the filter stops reporting
@@ -132,6 +134,7 @@ def test_per_beam_clutter_is_not_tracked_at_the_scanner():
     assert found_beam >= 0.97 * found_area
 
 
+@pytest.mark.slow
 def test_sparse_tracks_of_clutter_at_the_scanner_are_dropped_under_either_density():
     """The same scene: clutter returns near the scanner, born as an object of the birth
     prior's size that expects a few returns where an object there would return on dozens

@@ -4,8 +4,9 @@ from pathlib import Path
 
 import pytest
 
-from extended_tracker.config import (from_dict, from_flat, iter_leaves, leaf_kind, to_flat,
-                                     TrackerConfig)
+from extended_tracker.config import (
+    from_dict, from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig,
+)
 from extended_tracker.configio import load_yaml
 from extended_tracker.errors import ConfigError
 
@@ -161,7 +162,7 @@ def test_plain_yaml_reads_numbers_and_repeated_sections_as_a_parameter_file_does
 
 def test_presets_and_their_yaml_files_agree():
     """config/<preset>.yaml is generated from PRESETS and changes exactly those keys."""
-    from extended_tracker.config import PRESETS, preset
+    from extended_tracker.config import preset, PRESETS
     from extended_tracker.configio import preset_yaml
 
     root = Path(__file__).resolve().parents[1]
@@ -188,3 +189,19 @@ def test_every_field_is_read_by_the_package():
     unread = [name for name, _, _ in iter_leaves(TrackerConfig())
               if not re.search(r'\.' + name.split('.')[-1] + r'\b', source)]
     assert unread == []
+
+
+def test_the_readme_parameter_table_is_generated_from_the_descriptors():
+    """Every parameter of the node in the README's table, with the default, unit, range and
+    description the descriptors carry (`make config` writes it)."""
+    from pathlib import Path
+
+    from extended_tracker.config import iter_leaves
+    from extended_tracker.configio import parameter_table, PARAMETERS_BEGIN, PARAMETERS_END
+
+    text = (Path(__file__).resolve().parents[1] / 'README.md').read_text()
+    table = text.split(PARAMETERS_BEGIN)[1].split(PARAMETERS_END)[0].strip()
+    assert table == parameter_table(), 'run `make config` and commit README.md'
+    rows = table.splitlines()[2:]
+    assert [r.split('`')[1] for r in rows] == [name for name, _, _ in iter_leaves(TrackerConfig())]
+    assert '| `model.n_max` | `40` | objects, [1, 200] | cardinality pmf truncated' in table

@@ -2,20 +2,22 @@
 
 import warnings
 
+from hypothesis import given, strategies as st
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
 
-from extended_tracker import cphd
 from extended_tracker.config import TrackerConfig
-from extended_tracker.cphd import (
-    _predict_cardinality_log, predict_cardinality, resize_cardinality,
+from extended_tracker.filter import cardinality as cphd
+from extended_tracker.filter.cardinality import (
+    predict_cardinality, predict_cardinality_log, resize_cardinality,
 )
-from extended_tracker.ggiw import cell_stats, IW_OFFSET, Mixture, predict, update_pairs
-from extended_tracker.partition import build_partitions, distance_partitions
-from extended_tracker.reduction import merge_components, reduce_mixture
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import filter_step
+from extended_tracker.filter.distance import distance_partitions
+from extended_tracker.filter.ggiw import cell_stats, predict, update_pairs
+from extended_tracker.filter.mixture import IW_OFFSET, Mixture
+from extended_tracker.filter.partition import build_partitions
+from extended_tracker.filter.reduction import merge_components, reduce_mixture
+from extended_tracker.filter.state import FilterState
+from extended_tracker.tracker import filter_step, TrackerState
 
 from mixtures import pedestrians
 
@@ -166,7 +168,7 @@ def test_nested_add_equals_one_add_per_partition(pts, d_min, span, max_parts, ma
     partitions and cap counters as :meth:`PartitionSet.add` on each partition in turn,
     also after another partition was added first (shared cells, a duplicate partition).
     """
-    from extended_tracker.partition import PartitionSet
+    from extended_tracker.filter.partition import PartitionSet
 
     dist, _ = distance_partitions(pts, d_min, d_min + span, 40)
     sets = PartitionSet(), PartitionSet()
@@ -189,7 +191,7 @@ def test_small_cell_splits_equal_one_add_per_label_array(pts, d_min, split_small
     variant's label array, the cell's returns relabelled past every other label; with
     the distance partitions added first or not at all.
     """
-    from extended_tracker.partition import PartitionSet
+    from extended_tracker.filter.partition import PartitionSet
 
     dist, _ = distance_partitions(pts, d_min, d_min + 0.5, 40)
     if not len(pts):
@@ -242,7 +244,7 @@ def test_distance_labels_by_pass_and_by_jumping_agree(pts, d_min, span, max_thre
     """The two ways of reading the labels off the merges (a Python root pass per threshold
     for few returns, numpy pointer jumping for many) give the same arrays, each label the
     smallest index of its cell."""
-    from extended_tracker import partition
+    from extended_tracker.filter import distance as partition
 
     saved = partition.PASS_MAX_RETURNS
     try:
@@ -277,7 +279,7 @@ def test_kmeans_ends_at_a_lloyd_fixed_point():
     """Each point is nearest the mean of its own cluster: two tight groups 0.6 m apart,
     5 m out along one ray (centres pulled towards the origin would take the inner points
     of the far group)."""
-    from extended_tracker.partition import kmeans_pp
+    from extended_tracker.filter.kmeans import kmeans_pp
 
     rng = np.random.default_rng(11)
     direction = np.array([0.6, 0.8])
@@ -294,7 +296,7 @@ def test_kmeans_of_identical_points_and_a_centre_that_takes_none():
     """Points that all coincide: no second centre can be drawn (every distance is 0), and
     k-means returns one cluster. A given centre that no point is nearest stays where it
     is (it is not moved to the origin, where it would take the points near the sensor)."""
-    from extended_tracker.partition import kmeans_pp
+    from extended_tracker.filter.kmeans import kmeans_pp
 
     same = np.tile([[2.0, 1.0]], (5, 1))
     assert kmeans_pp(same, 2, seed=0).tolist() == [0] * 5
@@ -311,7 +313,7 @@ def test_sub_partitioning_splits_a_cell_where_the_predictions_stand():
     seed ends at one corner against the other three."""
     from dataclasses import replace
 
-    from extended_tracker.partition import kmeans_pp
+    from extended_tracker.filter.kmeans import kmeans_pp
 
     pts = np.array([[5.0, 0.0], [5.25, 0.0], [5.0, 0.25], [5.25, 0.25]])
     assert kmeans_pp(pts, 2, seed=0).tolist() == [1, 0, 0, 0]
@@ -327,7 +329,7 @@ def test_sub_partitioning_splits_a_cell_where_the_predictions_stand():
 def test_prediction_partition_takes_only_the_returns_inside_a_gate():
     """Returns inside a confident prediction's gate go to it; one outside every gate keeps
     its distance-partition cell, however near the gate's edge."""
-    from extended_tracker.partition import prediction_partition
+    from extended_tracker.filter.partition import prediction_partition
 
     predicted = {'centre': np.array([[0.0, 0.0], [2.0, 0.0]]),
                  'gate_inv': np.array([np.eye(2) / 0.01] * 2), 'gate': 9.0}   # 0.3 m
@@ -347,7 +349,7 @@ def test_the_confident_predictions_are_labels_heaviest_parts_of_weight_half_or_m
     written out here). A label whose heaviest part is lighter steers nothing, though its
     parts add up to more (label 4: 0.3 + 0.3); with none there is none.
     """
-    from extended_tracker.tracker import _gates, gate_threshold, sensor_noise
+    from extended_tracker.filter.update import gate_threshold, gates, sensor_noise
 
     P = np.diag([0.04, 0.09, 0.3, 0.3])
     V = 6.0 * np.diag([0.09, 0.04])                    # v 12: E[X] = V / (v - 6)
@@ -357,7 +359,7 @@ def test_the_confident_predictions_are_labels_heaviest_parts_of_weight_half_or_m
                             [8.0, 0.0, 0, 0], [9.0, 0.0, 0, 0], [9.0, 0.2, 0, 0]]),
                   np.tile(P, (6, 1, 1)), np.full(6, 12.0), np.tile(V, (6, 1, 1)),
                   np.array([1, 1, 2, 3, 4, 4]))
-    _, confident = _gates(mix, CFG)
+    _, confident = gates(mix, CFG)
     assert confident['centre'].tolist() == [[2.0, 0.0]]       # label 1's 0.7
     assert confident['rate'].tolist() == [12.0]
     R = sensor_noise(CFG)
@@ -366,7 +368,7 @@ def test_the_confident_predictions_are_labels_heaviest_parts_of_weight_half_or_m
     assert confident['gate'] == gate_threshold(CFG)
     light = Mixture(mix.w[2:], mix.alpha[2:], mix.beta[2:], mix.m[2:], mix.P[2:], mix.v[2:],
                     mix.V[2:], mix.label[2:])
-    assert _gates(light, CFG)[1] is None
+    assert gates(light, CFG)[1] is None
 
 def test_a_cell_of_four_returns_across_two_predictions_is_also_offered_split():
     """Sub-partitioning splits a cell of at least four returns that confident predictions
@@ -448,7 +450,7 @@ def test_cardinality_prediction_matches_enumeration(raw, p_s, birth):
     p = p / p.sum()
     want = _enumerated_prediction(p, p_s, birth)
     with np.errstate(divide='ignore'):                    # p_s = 1: log(1 - p_s)
-        for form in (predict_cardinality, _predict_cardinality_log):
+        for form in (predict_cardinality, predict_cardinality_log):
             got = np.exp(form(np.log(p), p_s, birth))
             np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-15)
 
@@ -483,8 +485,8 @@ def test_cardinality_thinning_forms_against_enumeration(monkeypatch, p_s, n_max,
     p = rng.random(n_max + 1) + 1e-3
     p /= p.sum()
     tables = []
-    binomials = cphd._binomials
-    monkeypatch.setattr(cphd, '_binomials', lambda n: tables.append(n) or binomials(n))
+    binomials = cphd.binomial_table
+    monkeypatch.setattr(cphd, 'binomial_table', lambda n: tables.append(n) or binomials(n))
     got = np.exp(predict_cardinality(np.log(p), p_s, 0.7))
     assert bool(tables) == product
     # tolerance: enumeration and the two forms round differently, each term within
@@ -498,7 +500,7 @@ def test_cardinality_prediction_limits(monkeypatch):
     objects for sure, all surviving, and a birth mean of 1e10: the birth pmf's entries up
     to N_max reach 1e10^40 / 40!, past what the running product holds, so the log-domain
     form stands in (without a warning) and keeps the 40."""
-    import extended_tracker.cphd as cphd
+    import extended_tracker.filter.cardinality as cphd
 
     p = np.array([0.1, 0.2, 0.3, 0.4])
     with np.errstate(divide='ignore'):
@@ -507,8 +509,8 @@ def test_cardinality_prediction_limits(monkeypatch):
         np.testing.assert_allclose(np.exp(predict_cardinality(np.log(p), 0.0, 0.0)),
                                    [1.0, 0.0, 0.0, 0.0], atol=1e-300)
         calls = []
-        monkeypatch.setattr(cphd, '_predict_cardinality_log',
-                            lambda *a: calls.append(a) or _predict_cardinality_log(*a))
+        monkeypatch.setattr(cphd, 'predict_cardinality_log',
+                            lambda *a: calls.append(a) or predict_cardinality_log(*a))
         forty = np.log(np.eye(41)[40])
         with warnings.catch_warnings():
             warnings.simplefilter('error')
@@ -536,19 +538,19 @@ def test_cardinality_resized_to_a_new_n_max(raw, n_max):
 
 def test_filter_follows_n_max_changed_while_running():
     from extended_tracker.config import from_dict
-    from extended_tracker.tracker import predict_state
+    from extended_tracker.filter.state import predict_state
 
     rng = np.random.default_rng(3)
-    state = FilterState.initial(CFG)
+    state = TrackerState.initial(CFG)
     for _ in range(3):
         state, _, _ = filter_step(state, rng.normal(0, 1.0, (20, 2)), 0.1, CFG)
     for n_max in (12, 60):
         cfg = from_dict({'model': {'n_max': n_max}})
-        pred = predict_state(state, 0.1, cfg)
+        pred = predict_state(state.filter, 0.1, cfg)
         assert len(pred.log_card) == n_max + 1
         new, est, _ = filter_step(state, rng.normal(0, 1.0, (20, 2)), 0.1, cfg)
-        assert len(new.log_card) == n_max + 1
-        assert np.isclose(np.exp(new.log_card).sum(), 1.0, atol=1e-9)
+        assert len(new.filter.log_card) == n_max + 1
+        assert np.isclose(np.exp(new.filter.log_card).sum(), 1.0, atol=1e-9)
 
 
 def test_birth_regions_enter_the_prediction_and_its_cardinality():
@@ -558,7 +560,7 @@ def test_birth_regions_enter_the_prediction_and_its_cardinality():
     mean (from no objects: the regions' weights plus the uniform birth ``rate dt``). A
     walker standing in a region is then reported under the region's label."""
     from extended_tracker.config import from_dict
-    from extended_tracker.tracker import predict_state
+    from extended_tracker.filter.state import predict_state
 
     cfg = from_dict({'birth': {'regions': [1.0, 2.0, 0.3, 4.0, -1.0, 0.6], 'weight': 0.2}})
     b = cfg.birth
@@ -582,43 +584,46 @@ def test_birth_regions_enter_the_prediction_and_its_cardinality():
     # 0.2 m facing the scanner at the origin)
     t = np.linspace(-1.2, 1.2, 12) + np.arctan2(-2.0, -1.0)
     walker = np.column_stack([1.0 + 0.2 * np.cos(t), 2.0 + 0.2 * np.sin(t)])
-    state = FilterState.initial(cfg)
-    first = state.next_label
+    state = TrackerState.initial(cfg)
+    first = state.filter.next_label
     for _ in range(8):
         state, est, _ = filter_step(state, walker, 0.1, cfg)
     assert list(est.label) == [first]
     assert np.linalg.norm(est.m[0, :2] - [1.0, 2.0]) < 0.2
 
 
+@pytest.mark.slow
 @given(st.integers(0, 10_000), st.sampled_from(['cphd', 'phd']))
 def test_filter_step_cardinality_sums_to_one(seed, mode):
     from extended_tracker.config import from_dict
 
     cfg = from_dict({'model': {'mode': mode, 'surveillance_area': 400.0}})
     rng = np.random.default_rng(seed)
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     for _ in range(4):
         pts = rng.normal(0, 1.0, (rng.integers(0, 30), 2))
         state, est, diag = filter_step(state, pts, 0.1, cfg)
-        card = np.exp(state.log_card)
+        mix = state.filter.mixture
+        card = np.exp(state.filter.log_card)
         assert np.isclose(card.sum(), 1.0, atol=1e-9)
-        assert len(est) <= len(np.unique(state.mixture.label))
-        assert is_spd(state.mixture.P) if len(state.mixture) else True
+        assert len(est) <= len(np.unique(mix.label))
+        assert is_spd(mix.P) if len(mix) else True
 
 
 def _sparse_merges(pts, d_max, delaunay):
-    """The spanning-forest path of ``partition._merges`` (scipy's sparse MST), forced:
-    over the Delaunay edges, or over the radius graph's pairs as where qhull fails."""
-    import extended_tracker.partition as P
+    """The spanning-forest path of ``distance.single_linkage_merges`` (scipy's sparse MST),
+    forced: over the Delaunay edges, or over the radius graph's pairs as where qhull
+    fails."""
+    import extended_tracker.filter.distance as P
 
-    saved = P.LINKAGE_MAX, P._delaunay_pairs
+    saved = P.LINKAGE_MAX, P.delaunay_pairs
     try:
         P.LINKAGE_MAX = -1
         if not delaunay:
-            P._delaunay_pairs = lambda points: None
-        return P._merges(pts, d_max)
+            P.delaunay_pairs = lambda points: None
+        return P.single_linkage_merges(pts, d_max)
     finally:
-        P.LINKAGE_MAX, P._delaunay_pairs = saved
+        P.LINKAGE_MAX, P.delaunay_pairs = saved
 
 
 @pytest.mark.parametrize('shape', ['blob', 'line'])
@@ -631,7 +636,7 @@ def test_a_dense_blob_past_the_linkage_size_is_not_listed_pair_by_pair(monkeypat
     from scipy.cluster.hierarchy import linkage
     from scipy.spatial.distance import pdist
 
-    import extended_tracker.partition as P
+    import extended_tracker.filter.distance as P
 
     rng = np.random.default_rng(3)
     n = P.LINKAGE_MAX + 100
@@ -645,7 +650,7 @@ def test_a_dense_blob_past_the_linkage_size_is_not_listed_pair_by_pair(monkeypat
             return super().query_pairs(*args, **kwargs)
 
     monkeypatch.setattr(P, 'cKDTree', Tree)
-    _, _, height = P._merges(pts, 0.8)
+    _, _, height = P.single_linkage_merges(pts, 0.8)
     assert len(listed) == (shape == 'line')
     z = linkage(pdist(pts), method='single')
     assert np.allclose(np.sort(height), z[z[:, 2] <= 0.8, 2], rtol=0, atol=1e-12)
@@ -658,16 +663,16 @@ def test_linkage_and_sparse_spanning_forests_agree(pts, d_max, delaunay):
     over its Delaunay edges (the path past the linkage size): same forest weight and size, and each
     merge joins two clusters under their smallest index, given first.
     """
-    import extended_tracker.partition as P
+    import extended_tracker.filter.distance as P
 
-    for a, b, h in (P._merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)):
+    for a, b, h in (P.single_linkage_merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)):
         assert np.all(np.diff(h) >= 0) and np.all(h <= d_max)
         assert len(a) == len(b) == len(h)
         parent = list(range(len(pts)))
         for u, v in zip(a, b):
             assert parent[u] == u and parent[v] == v and u < v      # both are roots
             parent[v] = u
-    dense, sparse = P._merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)
+    dense, sparse = P.single_linkage_merges(pts, d_max), _sparse_merges(pts, d_max, delaunay)
     assert len(dense[2]) == len(sparse[2])
     # MST weights are unique even when edges tie; rounding of 1e-12 lifts allowed
     assert np.isclose(dense[2].sum(), sparse[2].sum(), rtol=1e-12, atol=1e-9)
@@ -680,7 +685,7 @@ def test_delaunay_edges_are_the_triangulations_edges_each_once(seed, n, repeats)
     with each repeated point joined to the vertex it coincides with."""
     from scipy.spatial import Delaunay
 
-    from extended_tracker.partition import _delaunay_pairs
+    from extended_tracker.filter.distance import delaunay_pairs
 
     rng = np.random.default_rng(seed)
     pts = rng.normal(0.0, 1.0, (n, 2))
@@ -689,19 +694,19 @@ def test_delaunay_edges_are_the_triangulations_edges_each_once(seed, n, repeats)
     s = tri.simplices
     e = np.concatenate([s[:, [0, 1]], s[:, [1, 2]], s[:, [0, 2]], tri.coplanar[:, [0, 2]]])
     expected = np.unique(np.sort(e, axis=1), axis=0)
-    got = _delaunay_pairs(pts)
+    got = delaunay_pairs(pts)
     assert len(tri.coplanar) == repeats          # each repeat is left out, and joined
     assert np.array_equal(got, expected)
 
 
 def test_dense_blob_path_on_degenerate_inputs():
     """Collinear returns (qhull cannot triangulate) and repeated ones on the Delaunay path."""
-    import extended_tracker.partition as P
+    import extended_tracker.filter.distance as P
 
     line = np.column_stack([np.linspace(0, 3, 80), np.zeros(80)])
     blob = np.vstack([np.random.default_rng(1).normal(0, 0.05, (120, 2)), [[5.0, 5.0]] * 3])
     for pts in (line, blob):
-        dense = P._merges(pts, 0.5)
+        dense = P.single_linkage_merges(pts, 0.5)
         got = _sparse_merges(pts, 0.5, True)
         assert len(got[2]) == len(dense[2])
         assert np.isclose(got[2].sum(), dense[2].sum(), rtol=1e-12, atol=1e-9)
@@ -718,7 +723,7 @@ def likeliest_object_count(n_points: int, rate: float, k_max: int) -> int:
 
 @given(st.lists(st.integers(1, 200), min_size=1, max_size=10), st.floats(0.5, 40.0))
 def test_vectorised_object_count_matches_scalar(ns, rate):
-    from extended_tracker.partition import expected_object_counts
+    from extended_tracker.filter.partition import expected_object_counts
 
     got = expected_object_counts(np.array(ns), np.full(len(ns), rate), 4)
     assert got.tolist() == [likeliest_object_count(n, rate, 4) for n in ns]
@@ -727,7 +732,7 @@ def test_vectorised_object_count_matches_scalar(ns, rate):
 @given(st.lists(mixtures(max_k=4), min_size=1, max_size=4))
 def test_batched_merge_equals_per_group_reference(groups_of):
     """merge_groups (one vectorised Newton solve) == merge_gamma / merge_iw per group."""
-    from extended_tracker.reduction import merge_gamma, merge_groups, merge_iw
+    from extended_tracker.filter.reduction import merge_gamma, merge_groups, merge_iw
 
     mix = Mixture.concat(groups_of)
     sizes = np.cumsum([0] + [len(g) for g in groups_of])
@@ -747,7 +752,7 @@ def test_non_finite_detections_are_refused_with_a_clear_error():
     """The scan conversion masks bad beams; a direct caller of the core is told plainly."""
     import pytest
 
-    state = FilterState.initial(CFG)
+    state = TrackerState.initial(CFG)
     pts = np.array([[1.0, 2.0], [np.nan, 1.0], [1.05, np.inf]])
     with pytest.raises(ValueError, match='2 of 3 rows'):
         filter_step(state, pts, 0.1, CFG)
@@ -760,15 +765,15 @@ def test_seeded_generator_restarts_like_a_new_one():
     """
     import threading
 
-    from extended_tracker.partition import _seeded_generator
+    from extended_tracker.filter.kmeans import seeded_generator
 
     def draws(seed):
-        return _seeded_generator(seed).random(5)
+        return seeded_generator(seed).random(5)
 
     for seed in (0, 7, 0):
         expected = np.random.default_rng(seed).random(5)
         assert np.array_equal(draws(seed), expected)
-        _seeded_generator(seed + 1).random(3)          # another stream in between
+        seeded_generator(seed + 1).random(3)          # another stream in between
         assert np.array_equal(draws(seed), expected)
     out = {}
     thread = threading.Thread(target=lambda: out.update(d=draws(0)))
@@ -781,7 +786,8 @@ def test_extraction_reports_the_map_count_of_heaviest_labels_each_by_its_heavies
     """CPHD: the MAP count of labels, heaviest first, none lighter than min_existence
     (0.3); each reported at its heaviest component, with its label's weight."""
     from dataclasses import replace as evolve
-    from extended_tracker.tracker import extract
+
+    from extended_tracker.tracks.extract import extract
 
     cfg = TrackerConfig()
     mix = pedestrians([(1, 0.6, 0.0, 0.0), (1, 0.3, 0.1, 0.0), (2, 0.3, 5.0, 0.0),
@@ -807,7 +813,7 @@ def test_components_larger_than_any_object_or_lost_within_metres_are_dropped():
     """reduction.max_semi_axis (4 m) and max_position_std (3 m): a little over either is
     implausible, a little under is kept; lost along one axis is lost (the last two: std
     3.3 m across x only, then along y only)."""
-    from extended_tracker.tracker import _implausible
+    from extended_tracker.filter.update import implausible
 
     cfg = TrackerConfig()
     k = 6
@@ -820,7 +826,7 @@ def test_components_larger_than_any_object_or_lost_within_metres_are_dropped():
     V = (20.0 - IW_OFFSET) * semi[:, None, None] ** 2 * np.eye(2)
     mix = Mixture(np.ones(k), np.full(k, 10.0), np.ones(k), np.zeros((k, 4)), P,
                   np.full(k, 20.0), V, np.arange(k))
-    assert _implausible(mix, cfg).tolist() == [False, True, False, True, True, True]
+    assert implausible(mix, cfg).tolist() == [False, True, False, True, True, True]
 
 
 @pytest.mark.parametrize('scale', [0.3, 1.5, 3.0, 4.5])
@@ -828,7 +834,7 @@ def test_implausible_extents_against_eigvalsh(scale):
     """The extent test against numpy's eigenvalues, whether every trace is under the limit
     (no eigenvalue taken) or not: a semi-axis over max_semi_axis is implausible, whatever
     the ellipse's shape and orientation."""
-    from extended_tracker.tracker import _implausible
+    from extended_tracker.filter.update import implausible
 
     cfg = TrackerConfig()
     rng = np.random.default_rng(int(scale * 10))
@@ -844,7 +850,7 @@ def test_implausible_extents_against_eigvalsh(scale):
                   X * (v - IW_OFFSET)[:, None, None], np.arange(k))
     major2 = np.linalg.eigvalsh(mix.expected_extent())[:, -1]
     expected = major2 > cfg.reduction.max_semi_axis ** 2
-    assert _implausible(mix, cfg).tolist() == expected.tolist()
+    assert implausible(mix, cfg).tolist() == expected.tolist()
     if scale < 2:
         assert not expected.any()
     if scale > 4:
@@ -859,24 +865,24 @@ def test_birth_labels_one_per_set_of_cells_sharing_returns_or_the_claiming_label
     A birth cell on which an existing label has more detected weight than the birth
     takes that label (an object restarted); with less, it is new.
     """
-    from extended_tracker.partition import PartitionSet
-    from extended_tracker.tracker import _label_births
+    from extended_tracker.filter.births import label_births
+    from extended_tracker.filter.partition import PartitionSet
 
     pset = PartitionSet(cells=[np.array([0, 1]), np.array([1, 2]), np.array([5]),
                                np.array([2, 3]), np.array([7])])
-    labels, nxt = _label_births(pset, np.array([0, 1, 2, 3]), 10)
+    labels, nxt = label_births(pset, np.array([0, 1, 2, 3]), 10)
     assert labels.tolist() == [10, 10, 11, 10] and nxt == 12     # 0-1-3 chained by 1, 2
     claim = np.array([0, 0, 4, 0, 6])
     claim_w = np.array([0.0, 0.0, 0.3, 0.0, 0.2])
     birth_w = np.array([0.5, 0.5, 0.2, 0.5, 0.3])
-    labels, nxt = _label_births(pset, np.array([2, 4]), 10, claim, claim_w, birth_w)
+    labels, nxt = label_births(pset, np.array([2, 4]), 10, claim, claim_w, birth_w)
     assert labels.tolist() == [4, 10] and nxt == 11
 
 
 def test_a_labels_detections_are_its_heaviest_cells_where_detection_outweighs_a_miss():
     """``num_detections`` of a label: the size of the cell of its heaviest detected pair,
     when its detected weight exceeds its missed weight; none otherwise."""
-    from extended_tracker.tracker import _detections_per_label
+    from extended_tracker.filter.assemble import detections_per_label
 
     mix = Mixture(np.ones(3), np.full(3, 10.0), np.ones(3), np.zeros((3, 4)),
                   np.tile(np.eye(4), (3, 1, 1)), np.full(3, 20.0),
@@ -885,35 +891,36 @@ def test_a_labels_detections_are_its_heaviest_cells_where_detection_outweighs_a_
     comp, cell = np.array([0, 1, 2, 2]), np.array([0, 1, 2, 1])
     w_det = np.array([0.2, 0.5, 0.1, 0.05])          # label 1: 0.7 detected, 2: 0.15
     w_missed = np.array([0.1, 0.1, 0.6])               # label 1: 0.2 missed, 2: 0.6
-    assert _detections_per_label(mix, comp, cell, w_det, w_missed, stats) == {1: 5}
+    assert detections_per_label(mix, comp, cell, w_det, w_missed, stats.n) == {1: 5}
     w_missed[2] = 0.1
-    assert _detections_per_label(mix, comp, cell, w_det, w_missed, stats) == {1: 5, 2: 2}
+    assert detections_per_label(mix, comp, cell, w_det, w_missed, stats.n) == {1: 5, 2: 2}
 
 
 def test_far_parts_of_a_label_become_new_objects_when_heavy_and_go_when_light():
     """
-    ``_split_labels`` (merge distance 4 in the metric of the head's position covariance
+    ``split_labels`` (merge distance 4 in the metric of the head's position covariance
     plus extent, here 0.0425 m^2: 0.41 m; split weight 0.4): a part within the distance
     stays; far parts of weight 0.4 or more get fresh labels, heaviest first, from
     ``next_label``; a far light part is dropped; other labels are untouched.
     """
-    from extended_tracker.tracker import _split_labels
+    from extended_tracker.tracks.labels import split_labels
 
     rows = [(1, 0.9, 0.0, 0.0), (1, 0.3, 0.3, 0.0), (1, 0.5, 1.0, 0.0), (1, 0.7, 0.0, 1.5),
             (1, 0.45, 0.45, 0.0), (1, 0.05, -1.0, 0.0), (2, 0.8, 5.0, 0.0)]
-    out, nxt = _split_labels(pedestrians(rows), 0.4, 4.0, 10)
+    out, nxt = split_labels(pedestrians(rows), 0.4, 4.0, 10)
     assert nxt == 13
     got = {(round(x, 2), round(y, 2)): int(lab)
            for (x, y), lab in zip(out.m[:, :2].tolist(), out.label)}
     assert got == {(0.0, 0.0): 1, (0.3, 0.0): 1, (0.0, 1.5): 10, (1.0, 0.0): 11,
                    (0.45, 0.0): 12, (5.0, 0.0): 2}
     lone = pedestrians([(1, 0.9, 0.0, 0.0), (2, 0.8, 5.0, 0.0)])
-    assert _split_labels(lone, 0.4, 4.0, 10) == (lone, 10)
+    assert split_labels(lone, 0.4, 4.0, 10) == (lone, 10)
 
 
 def test_a_reported_labels_existence_is_its_weight_clipped_to_one():
     from dataclasses import replace as evolve
-    from extended_tracker.tracker import extract
+
+    from extended_tracker.tracks.extract import extract
 
     cfg = TrackerConfig()
     mix = pedestrians([(1, 0.8, 0.0, 0.0), (1, 0.5, 0.1, 0.0), (2, 0.6, 5.0, 0.0)])

@@ -13,8 +13,7 @@ import pytest
 
 from extended_tracker.config import from_dict
 from extended_tracker.sim.points import point_scene, PointObject
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import filter_step
+from extended_tracker.tracker import filter_step, TrackerState
 
 DT = 0.1
 
@@ -24,7 +23,7 @@ def run(objects, steps, seed, cfg=None, missed=lambda k: (), clutter_rate=1.0,
     """Filter ``steps`` scans of ``objects``; ``extra(k)``, if not None, is added to scan k."""
     cfg = cfg or from_dict({'model': {'surveillance_area': 400.0}})
     rng = np.random.default_rng(seed)
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     out = []
     for k in range(steps):
         pts, truth = point_scene(objects, k * DT, rng, clutter_rate=clutter_rate,
@@ -94,7 +93,7 @@ def test_cphd_cardinality_variance_below_phd():
         hist = run(objects, 60, seed=1, cfg=cfg)
         vs = []
         for _, _, state in hist[10:]:
-            p = np.exp(state.log_card)
+            p = np.exp(state.filter.log_card)
             n = np.arange(len(p))
             vs.append(np.sum(n * n * p) - np.sum(n * p) ** 2)
         var[mode] = float(np.mean(vs))
@@ -137,14 +136,14 @@ def _spot(seen_scans, confirm_detections, scans=8):
     cfg = from_dict({'model': {'surveillance_area': 400.0},
                      'extraction': {'confirm_detections': confirm_detections}})
     rng = np.random.default_rng(3)
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     shown, record = [], []
     for k in range(scans):
         pts = (np.array([3.0, 1.0]) + rng.normal(0.0, 0.05, (3, 2)) if k < seen_scans
                else np.zeros((0, 2)))
         state, est, _ = filter_step(state, pts, DT, cfg)
         shown.append(est.label.tolist())
-        record.append((state.reported_scans.tolist(), state.reported_hits.tolist()))
+        record.append((state.tracks.reported_scans.tolist(), state.tracks.reported_hits.tolist()))
     return shown, record
 
 
@@ -197,8 +196,8 @@ def test_a_cluster_too_small_to_be_born_from_is_clutter(mode):
     hist = run(walker, 40, 7, cfg, clutter_rate=0.0,
                extra=lambda k: cluster if 20 <= k < 30 else None)
     for k, (_, est, state) in enumerate(hist):
-        assert not np.isnan(state.log_card).any(), k
-        assert np.exp(state.log_card).sum() == pytest.approx(1.0, abs=1e-9)
+        assert not np.isnan(state.filter.log_card).any(), k
+        assert np.exp(state.filter.log_card).sum() == pytest.approx(1.0, abs=1e-9)
         assert not np.any(np.linalg.norm(est.m[:, :2] - cluster[1], axis=1) < 1.0), k
     # from scan 5 on, one label within 0.5 m of the walker in every scan
     tail = ids_of_truth(hist)[0][5:]

@@ -21,10 +21,11 @@ from scipy import integrate, stats
 from scipy.linalg import sqrtm
 from scipy.special import gammaln, logsumexp, multigammaln
 
-from extended_tracker.ggiw import (
-    cell_stats, IW_OFFSET, log_miss_factor, Mixture, PairUpdate, predict, update_pairs,
+from extended_tracker.filter.ggiw import (
+    cell_stats, log_miss_factor, PairUpdate, predict, update_pairs,
 )
-from extended_tracker.state import Estimates
+from extended_tracker.filter.mixture import IW_OFFSET, Mixture
+from extended_tracker.tracks.estimates import Estimates
 
 RHO = 0.25
 R = 0.03 ** 2 * np.eye(2)
@@ -78,6 +79,7 @@ def test_likelihood_converges_to_exact_gaussian_marginal():
     assert gaps[-1] < 1e-4, gaps
 
 
+@pytest.mark.slow
 def test_monte_carlo_gap_shrinks_with_v():
     rng = np.random.default_rng(1)
     pts, X0 = pedestrian_points(rng)
@@ -282,7 +284,7 @@ def test_the_motion_noise_is_one_acceleration_held_over_the_step():
     held over the step, adds to position and velocity: integrated here in small Euler
     steps (the position's first-order error shrinks with the step count), per axis, the
     two axes independent."""
-    from extended_tracker.ggiw import cv_matrices
+    from extended_tracker.filter.ggiw import cv_matrices
 
     dt, sigma, steps = 0.13, 1.7, 200_000
     h = dt / steps
@@ -319,8 +321,8 @@ def test_the_gate_reaches_three_times_the_outline_of_a_well_localised_component(
     a well-localised pedestrian's gate holds cells centred anywhere out to three times its
     outline, where one return's spread alone ends near twice, and none at five times."""
     from extended_tracker.config import TrackerConfig
-    from extended_tracker.ggiw import gate_pairs
-    from extended_tracker.tracker import gate_threshold, sensor_noise
+    from extended_tracker.filter.ggiw import gate_pairs
+    from extended_tracker.filter.update import gate_threshold, sensor_noise
 
     cfg = TrackerConfig()
     X0 = np.array([[0.09, 0.02], [0.02, 0.05]])              # a pedestrian
@@ -406,7 +408,7 @@ def test_the_gate_is_a_strict_chi_square_bound_on_its_covariance():
     """gate_pairs keeps a cell whose centroid lies at d^2 just under the threshold and
     drops one just over it, d^2 measured under H P H^T + (1 + rho) X + R built here from
     the component's parameters and inverted by numpy."""
-    from extended_tracker.ggiw import gate_pairs
+    from extended_tracker.filter.ggiw import gate_pairs
 
     X0 = np.array([[0.09, 0.02], [0.02, 0.05]])
     mix = one_component(30, X0)
@@ -435,7 +437,7 @@ def test_forgetting_far_faster_than_the_scan_keeps_the_parameters_valid(tau):
     is left of alpha and of v - 6 stays at the floor instead of underflowing to 0, so the
     rate and extent means survive (they were 0/0), over many steps of coasting too.
     """
-    from extended_tracker.ggiw import FORGET_FLOOR
+    from extended_tracker.filter.ggiw import FORGET_FLOOR
 
     rng = np.random.default_rng(6)
     mix = random_mixture(rng, 3)
@@ -452,8 +454,8 @@ def test_forgetting_far_faster_than_the_scan_keeps_the_parameters_valid(tau):
 
 def test_closed_form_eigenvalues_and_outlines():
     """eig2 against LAPACK; marker outlines lie on the extent ellipse (p-c)'X^-1(p-c) = 1."""
-    from extended_tracker.ggiw import eig2
-    from extended_tracker.messages import outline_xy
+    from extended_tracker.filter.algebra2 import eig2
+    from extended_tracker.report.messages import outline_xy
 
     rng = np.random.default_rng(4)
     A = rng.normal(size=(50, 2, 2))
@@ -498,7 +500,7 @@ def test_take_selects_the_same_rows_of_every_field(kind):
 def test_cached_tables_are_shared_read_only_and_equal_a_fresh_computation():
     """The memoised tables (CV matrices here) are one read-only object per argument tuple,
     with the values the undecorated function computes."""
-    from extended_tracker.ggiw import cv_matrices
+    from extended_tracker.filter.ggiw import cv_matrices
 
     F, Q = cv_matrices(0.1, 0.7)
     again = cv_matrices(0.1, 0.7)
@@ -513,7 +515,7 @@ def test_cached_tables_are_shared_read_only_and_equal_a_fresh_computation():
 def test_quad_form2_equals_the_matrix_product():
     """The closed-form ``e^T A e`` of the gates against the plain product, broadcast the two
     ways the gates use it (rounding differs: the closed form doubles the off-diagonal)."""
-    from extended_tracker.ggiw import quad_form2
+    from extended_tracker.filter.algebra2 import quad_form2
 
     rng = np.random.default_rng(5)
     B = rng.normal(size=(6, 2, 2))
@@ -534,7 +536,7 @@ def test_the_gate_threshold_is_the_chi_square_quantile_and_1_means_no_gate():
     import warnings
 
     from extended_tracker.config import from_dict
-    from extended_tracker.tracker import gate_threshold
+    from extended_tracker.filter.update import gate_threshold
 
     for p in (0.6, 0.9, 0.99, 0.999, 1 - 1e-9):
         got = gate_threshold(from_dict({'partition': {'gate_probability': p}}))
@@ -547,7 +549,7 @@ def test_the_gate_threshold_is_the_chi_square_quantile_and_1_means_no_gate():
 def test_inv2_and_det2_equal_numpys_for_any_2x2():
     """The closed-form inverse and determinant of (..., 2, 2) matrices, symmetric or not
     (the docstring promises any), against numpy's LU."""
-    from extended_tracker.ggiw import det2, inv2
+    from extended_tracker.filter.algebra2 import det2, inv2
 
     rng = np.random.default_rng(8)
     A = rng.normal(size=(4, 3, 2, 2))

@@ -10,11 +10,11 @@ import math
 import numpy as np
 
 from extended_tracker.config import from_dict
-from extended_tracker.evaluate import in_view, view_of
+from extended_tracker.evaluation.evaluate import in_view, view_of
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sim.laser import LaserSpec, Scene, SimObject, simulate
-from extended_tracker.identity import group_segments
-from extended_tracker.state import Estimates
+from extended_tracker.tracks.estimates import Estimates
+from extended_tracker.tracks.grouping import group_segments
 
 
 def pieces(rows):

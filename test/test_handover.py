@@ -10,21 +10,20 @@ position plus velocity times the time since) takes the lost id.
 import numpy as np
 
 from extended_tracker.config import from_dict
-from extended_tracker.ggiw import Mixture
-from extended_tracker.identity import hand_over
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import filter_step
+from extended_tracker.filter.state import FilterState
+from extended_tracker.tracker import filter_step, TrackerState
+from extended_tracker.tracks.identity import hand_over
+from extended_tracker.tracks.record import TrackRecord
 
 from mixtures import estimates, pedestrians as mixture
 
 
 def lost_state(shown, pos, vel=None, elapsed=None, reported=(), reported_scans=(),
                recent_from=9, clock=None):
-    """Labels ``shown`` last shown at ``pos``; labels from ``recent_from`` on are young
-    (or as the label ``clock`` says)."""
+    """The record of labels ``shown`` last shown at ``pos``; labels from ``recent_from`` on
+    are young (or as the label ``clock`` says). The label counter stands at 12."""
     k = len(shown)
-    return FilterState(
-        Mixture.empty(), np.zeros(1), next_label=12,
+    return TrackRecord(
         reported=np.array(reported, dtype=np.int64),
         reported_scans=np.array(reported_scans, dtype=np.int64),
         reported_origin=np.zeros((len(reported), 2)), reported_travel=np.zeros(len(reported)),
@@ -45,8 +44,8 @@ def test_a_young_label_where_the_lost_one_would_be_takes_its_id_and_the_labels_s
     old = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[0.4],
                      reported=[9], reported_scans=[2])
     new = FilterState(mixture([(5, 0.05, 0.5, 0.0), (9, 0.7, 0.9, 0.3), (9, 0.3, 0.95, 0.3)]),
-                      np.zeros(1), next_label=12, dt=0.1)
-    out, est, record, n = hand_over(old, new, estimates([9], [[0.9, 0.3]]), CFG)
+                      np.zeros(1), 12)
+    out, est, record, n = hand_over(old, new, estimates([9], [[0.9, 0.3]]), CFG, 0.1, 12)
     assert n == 1
     assert est.label.tolist() == [5]
     # the young object's components carry the old id, the fading ones the young label
@@ -58,8 +57,8 @@ def test_a_young_label_where_the_lost_one_would_be_takes_its_id_and_the_labels_s
 
 def test_an_id_extracted_in_the_last_scan_keeps_its_own_report_count():
     old = lost_state([5], [[0.0, 0.0]], reported=[5, 9], reported_scans=[40, 1])
-    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.4, 0.0)]), np.zeros(1), dt=0.1)
-    _, est, record, n = hand_over(old, new, estimates([9], [[0.4, 0.0]]), CFG)
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.4, 0.0)]), np.zeros(1), 12)
+    _, est, record, n = hand_over(old, new, estimates([9], [[0.4, 0.0]]), CFG, 0.1, 12)
     assert n == 1 and est.label.tolist() == [5]
     assert record.reported.tolist() == [5, 9] and record.reported_scans.tolist() == [40, 1]
 
@@ -67,18 +66,18 @@ def test_an_id_extracted_in_the_last_scan_keeps_its_own_report_count():
 def test_an_established_label_never_takes_a_lost_id():
     # label 7 is right where lost label 5 would be, but it is older than the window
     old = lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]])
-    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (7, 1.0, 0.3, 0.0)]), np.zeros(1), dt=0.1)
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (7, 1.0, 0.3, 0.0)]), np.zeros(1), 12)
     est = estimates([7], [[0.3, 0.0]])
-    out, out_est, _, n = hand_over(old, new, est, CFG)
+    out, out_est, _, n = hand_over(old, new, est, CFG, 0.1, 12)
     assert n == 0 and out is new and out_est is est
     # the same object under a label created in the window does take it
     _, out_est, _, n = hand_over(lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], recent_from=7),
-                                 new, est, CFG)
+                                 new, est, CFG, 0.1, 12)
     assert n == 1 and out_est.label.tolist() == [5]
     # the counter's older readings are beyond the window: 7, created 1.5 s ago, is not
     # young, whatever was created in the window (from 9 on)
     older = lost_state([5, 7], [[0.0, 0.0], [0.3, 0.0]], clock=((1.5, 3), (0.5, 9)))
-    assert hand_over(older, new, est, CFG)[3] == 0
+    assert hand_over(older, new, est, CFG, 0.1, 12)[3] == 0
 
 
 def test_an_id_passes_only_to_a_newer_label():
@@ -89,47 +88,45 @@ def test_an_id_passes_only_to_a_newer_label():
     id passes only to a label created after it, so the object ends under the older one.
     """
     both_young = lost_state([5, 7], [[0.0, 0.0], [0.05, 0.0]], recent_from=5)
-    under_5 = FilterState(mixture([(5, 1.0, 0.02, 0.0), (7, 0.05, 0.05, 0.0)]), np.zeros(1),
-                          dt=0.1)
+    under_5 = FilterState(mixture([(5, 1.0, 0.02, 0.0), (7, 0.05, 0.05, 0.0)]), np.zeros(1), 12)
     est = estimates([5], [[0.02, 0.0]])
-    out, out_est, _, n = hand_over(both_young, under_5, est, CFG)
+    out, out_est, _, n = hand_over(both_young, under_5, est, CFG, 0.1, 12)
     assert n == 0 and out is under_5 and out_est is est
-    under_7 = FilterState(mixture([(5, 0.05, 0.0, 0.0), (7, 1.0, 0.02, 0.0)]), np.zeros(1),
-                          dt=0.1)
-    _, out_est, _, n = hand_over(both_young, under_7, estimates([7], [[0.02, 0.0]]), CFG)
+    under_7 = FilterState(mixture([(5, 0.05, 0.0, 0.0), (7, 1.0, 0.02, 0.0)]), np.zeros(1), 12)
+    _, out_est, _, n = hand_over(both_young, under_7, estimates([7], [[0.02, 0.0]]), CFG, 0.1, 12)
     assert n == 1 and out_est.label.tolist() == [5]
 
 
 def test_too_far_too_late_or_switched_off_means_no_handover():
-    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.85, 0.0)]), np.zeros(1), dt=0.1)
+    new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (9, 1.0, 0.85, 0.0)]), np.zeros(1), 12)
     est = estimates([9], [[0.85, 0.0]])
     # 0.85 m from where 5 would be (it stood still): beyond 0.8 m
-    assert hand_over(lost_state([5], [[0.0, 0.0]]), new, est, CFG)[3] == 0
+    assert hand_over(lost_state([5], [[0.0, 0.0]]), new, est, CFG, 0.1, 12)[3] == 0
     # walking at 1 m/s towards it, 0.4 s + 0.1 s ago: it would be at 0.5 m, 0.35 m away
     moving = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[0.4])
-    assert hand_over(moving, new, est, CFG)[3] == 1
+    assert hand_over(moving, new, est, CFG, 0.1, 12)[3] == 1
     # shown 1 s before the last scan: lost for longer than the window
     late = lost_state([5], [[0.0, 0.0]], vel=[[1.0, 0.0]], elapsed=[1.0])
-    assert hand_over(late, new, est, CFG)[3] == 0
+    assert hand_over(late, new, est, CFG, 0.1, 12)[3] == 0
     off = from_dict({'extraction': {'handover_time': 0.0}})
-    assert hand_over(moving, new, est, off)[3] == 0
+    assert hand_over(moving, new, est, off, 0.1, 12)[3] == 0
     # the speed limit has the last word: 0.85 m in 0.5 s is more than 0.5 m/s allows
     slow = from_dict({'extraction': {'max_speed': 0.5, 'jump_slack': 0.0}})
-    assert hand_over(moving, new, est, slow)[3] == 0
+    assert hand_over(moving, new, est, slow, 0.1, 12)[3] == 0
     for max_speed, passes in ((1.6, 0), (1.8, 1)):           # 0.8 and 0.9 m in 0.5 s
         cfg = from_dict({'extraction': {'max_speed': max_speed, 'jump_slack': 0.0}})
-        assert hand_over(moving, new, est, cfg)[3] == passes, max_speed
+        assert hand_over(moving, new, est, cfg, 0.1, 12)[3] == passes, max_speed
 
 
 def test_nearest_pairs_first_one_to_one_and_estimates_stay_in_label_order():
     old = lost_state([5, 6], [[0.0, 0.0], [1.0, 0.0]])
     new = FilterState(mixture([(5, 0.1, 0.0, 0.0), (6, 0.1, 1.0, 0.0), (9, 1.0, 0.3, 0.0),
                                (10, 1.0, 0.1, 0.0), (11, 1.0, 0.5, 0.0)]),
-                      np.zeros(1), dt=0.1)
+                      np.zeros(1), 12)
     # pairs within 0.8 m, nearest first: 10-5 (0.1), 9-5 (0.3), 11-5 and 11-6 (0.5), 9-6
     # (0.7). 10 takes 5; 5 is then taken, so 11 takes 6 and 9 keeps its own label.
     est = estimates([9, 10, 11], [[0.3, 0.0], [0.1, 0.0], [0.5, 0.0]])
-    out, est, _, n = hand_over(old, new, est, CFG)
+    out, est, _, n = hand_over(old, new, est, CFG, 0.1, 12)
     assert n == 2
     assert est.label.tolist() == [5, 6, 9]
     np.testing.assert_allclose(est.m[:, 0], [0.1, 0.5, 0.3])
@@ -144,7 +141,7 @@ def _walker(handover_time, step_aside, gap=0, seed=0):
     """
     cfg = from_dict({'extraction': {'handover_time': handover_time}})
     rng = np.random.default_rng(seed)
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     out = []
     for k in range(40):
         centre = np.array([2.0 + 0.1 * k, 1.0 + (step_aside if k >= 20 else 0.0)])

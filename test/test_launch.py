@@ -53,8 +53,9 @@ def _stand_ins():
 @pytest.fixture
 def launch_module(monkeypatch):
     try:
-        import launch  # noqa: F401  (a real Jazzy install: nothing to stand in for)
         import launch_ros  # noqa: F401
+
+        import launch  # noqa: F401  (a real Jazzy install: nothing to stand in for)
         pytest.skip('real launch packages present: ros2 launch checks this file there')
     except ImportError:
         pass
@@ -109,8 +110,8 @@ def test_a_preset_applies_after_the_base_file_and_an_unknown_one_is_refused(laun
 
 
 def test_rviz_starts_on_request_with_the_scan_topic_and_fixed_frame(launch_module):
-    import yaml
     from ament_index_python.packages import get_package_share_directory
+    import yaml
 
     declared, make_node = _args(launch_module.generate_launch_description())
     installed = Path(get_package_share_directory('extended_tracker')) / 'rviz' / 'tracker.rviz'

@@ -14,11 +14,14 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict, PRESETS
-from extended_tracker.cphd import thin_cardinality
-from extended_tracker.ggiw import IW_OFFSET, Mixture
-from extended_tracker.reduction import join_parts
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import filter_step
+from extended_tracker.filter.cardinality import thin_cardinality
+from extended_tracker.filter.mixture import IW_OFFSET, Mixture
+from extended_tracker.filter.reduction import join_parts
+from extended_tracker.filter.state import FilterState
+from extended_tracker.tracker import filter_step, TrackerState
+from extended_tracker.tracks.record import TrackRecord
+
+from mixtures import with_fields
 
 
 def leg_config(pair_scans, mode='cphd'):
@@ -113,7 +116,7 @@ def legs(rng, t, centre, velocity, gap=0.35, n=8):
 
 def tracked_legs(cfg, left, right):
     """A state with the legs already tracked as two labels (as a replay leaves them)."""
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     k = 2
     m = np.array([[*left, 1.0, 0.0], [*right, 1.0, 0.0]])
     P = np.broadcast_to(np.diag([0.03 ** 2, 0.03 ** 2, 0.2, 0.2]), (k, 4, 4)).copy()
@@ -123,7 +126,7 @@ def tracked_legs(cfg, left, right):
                   np.array([3, 5]))
     log_card = np.full(cfg.model.n_max + 1, -np.inf)
     log_card[2] = 0.0
-    return replace(state, mixture=mix, log_card=log_card, next_label=6,
+    return with_fields(state, mixture=mix, log_card=log_card, next_label=6,
                    reported=np.array([3, 5]), reported_scans=np.array([40, 30]),
                    reported_hits=np.array([40, 30]),
                    reported_origin=np.array([left, right]), reported_travel=np.zeros(2),
@@ -148,8 +151,8 @@ def test_two_tracked_legs_of_one_walker_become_one_track(pair_scans, mode):
         assert joined == 1 and joins.index(1) == pair_scans - 1
         assert all(s == [3] for s in shown[3:])
         if mode == 'cphd':
-            assert int(state.log_card.argmax()) == 1
-        assert np.add.reduce(state.mixture.w) == pytest.approx(1.0, abs=0.1)
+            assert int(state.filter.log_card.argmax()) == 1
+        assert np.sum(state.filter.mixture.w) == pytest.approx(1.0, abs=0.1)
     else:
         # what the leg-height recordings showed: two ids side by side to the end
         assert joined == 0
@@ -163,10 +166,10 @@ def test_a_leg_born_beside_its_walker_is_never_shown(pair_scans):
     cfg = leg_config(pair_scans)
     rng = np.random.default_rng(11)
     state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
-    mix = state.mixture.take(np.array([0]))
+    mix = state.filter.mixture.take(np.array([0]))
     log_card = np.full(cfg.model.n_max + 1, -np.inf)
     log_card[1] = 0.0
-    state = replace(state, mixture=mix, log_card=log_card, reported=np.array([3]),
+    state = with_fields(state, mixture=mix, log_card=log_card, reported=np.array([3]),
                     reported_scans=np.array([40]), reported_hits=np.array([40]),
                     reported_origin=np.array([[2.0, 0.175]]), reported_travel=np.zeros(1),
                     reported_size=np.zeros(1))
@@ -187,7 +190,7 @@ def test_two_walkers_passing_each_other_stay_two():
     cfg = leg_config(3)
     rng = np.random.default_rng(5)
     state = tracked_legs(cfg, (1.0, 0.225), (3.0, -0.225))
-    state = replace(state, mixture=replace(state.mixture, m=np.array(
+    state = with_fields(state, mixture=replace(state.filter.mixture, m=np.array(
         [[1.0, 0.225, 1.5, 0.0], [3.0, -0.225, -1.5, 0.0]])))
     joined = 0
     for k in range(14):
@@ -221,7 +224,7 @@ def test_a_leg_whose_pair_forms_after_its_birth_is_never_shown():
     state = tracked_legs(cfg, (2.0, 0.0), (2.0, -0.35))
     log_card = np.full(cfg.model.n_max + 1, -np.inf)
     log_card[1] = 0.0
-    state = replace(state, mixture=state.mixture.take(np.array([0])), log_card=log_card,
+    state = with_fields(state, mixture=state.filter.mixture.take(np.array([0])), log_card=log_card,
                     reported=np.array([3]), reported_scans=np.array([40]),
                     reported_hits=np.array([40]), reported_origin=np.array([[2.0, 0.0]]),
                     reported_travel=np.zeros(1), reported_size=np.zeros(1))
@@ -262,19 +265,19 @@ def test_a_join_thins_the_cardinality_by_the_junior_weight_it_drops(mode):
     """Two parts of weights 0.9 and 0.6 joined into one of 0.9: in CPHD mode the
     cardinality pmf loses the 0.6 dropped (cphd.thin_cardinality, checked against
     enumeration above), in PHD mode there is none to thin."""
-    from extended_tracker.identity import join_pairs
-    from extended_tracker.state import Estimates
-    from extended_tracker.tracker import extract
+    from extended_tracker.tracks.estimates import Estimates
+    from extended_tracker.tracks.extract import extract
+    from extended_tracker.tracks.pairs import join_pairs
 
     cfg = leg_config(3, mode)
     state = tracked_legs(cfg, (2.0, 0.175), (2.0, -0.175))
     log_card = np.log(np.array([0.1, 0.3, 0.6] + [0.0] * (cfg.model.n_max - 2)) + 1e-300)
-    state = replace(state, mixture=replace(state.mixture, w=np.array([0.9, 0.6])),
-                    log_card=log_card, pairs=np.array([[3, 5]]), pair_runs=np.array([2]))
-    est = extract(replace(state, log_card=np.log(np.eye(cfg.model.n_max + 1)[2] + 1e-300)),
-                  cfg)
+    state = with_fields(state, mixture=replace(state.filter.mixture, w=np.array([0.9, 0.6])),
+                        log_card=log_card, pairs=np.array([[3, 5]]), pair_runs=np.array([2]))
+    est = extract(replace(state.filter,
+                          log_card=np.log(np.eye(cfg.model.n_max + 1)[2] + 1e-300)), cfg)
     assert isinstance(est, Estimates) and est.label.tolist() == [3, 5]
-    out, est, joined, _ = join_pairs(state, est, cfg)
+    out, _, est, joined, _ = join_pairs(state.filter, state.tracks, est, cfg)
     assert joined.tolist() == [5] and est.label.tolist() == [3]
     assert out.mixture.label.tolist() == [3] and out.mixture.w.tolist() == [0.9]
     want = thin_cardinality(log_card, 0.6) if mode == 'cphd' else log_card
@@ -297,18 +300,18 @@ def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
     three leg-sized reports in a row (0.3 m, then 0.2 m apart) pair the nearest two,
     one to one.
     """
-    from extended_tracker.identity import join_pairs
+    from extended_tracker.tracks.pairs import join_pairs
 
     cfg = leg_config(3)
-    state = replace(FilterState.initial(cfg), reported=np.array([3, 5, 7]),
-                    reported_scans=np.array([9, 9, 9]))
-    forming = [join_pairs(state, _parts([3, 5], [0.0, 0.4], semis), cfg)[0].pairs.tolist()
+    filt = FilterState.initial(cfg)
+    record = TrackRecord(reported=np.array([3, 5, 7]), reported_scans=np.array([9, 9, 9]))
+    forming = [join_pairs(filt, record, _parts([3, 5], [0.0, 0.4], semis), cfg)[1].pairs.tolist()
                for semis in ((0.45, 0.1), (0.45, 0.45))]
     assert forming == [[[3, 5]], []]
-    out = join_pairs(state, _parts([3, 5, 7], [0.0, 0.3, 0.5], (0.1, 0.1, 0.1)), cfg)[0]
+    out = join_pairs(filt, record, _parts([3, 5, 7], [0.0, 0.3, 0.5], (0.1, 0.1, 0.1)), cfg)[1]
     assert out.pairs.tolist() == [[5, 7]] and out.pair_runs.tolist() == [1]
     # within pair_distance includes it: two legs exactly 0.6 m apart are a pair
-    out = join_pairs(state, _parts([3, 5], [0.0, 0.6], (0.1, 0.1)), cfg)[0]
+    out = join_pairs(filt, record, _parts([3, 5], [0.0, 0.6], (0.1, 0.1)), cfg)[1]
     assert out.pairs.tolist() == [[3, 5]]
 
 
@@ -317,15 +320,16 @@ def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
 def test_a_pair_joins_under_the_label_reported_longer_then_the_smaller(scans, senior, junior):
     """The senior of a pair ready to join is the label reported in more scans in a row;
     between equals, the smaller label. The junior leaves the estimates and the mixture."""
+    from extended_tracker.tracks.pairs import join_pairs
+
     from mixtures import pedestrians, reported
 
-    from extended_tracker.identity import join_pairs
-
     cfg = leg_config(3)
-    state = replace(FilterState.initial(cfg),
-                    mixture=pedestrians([(3, 0.9, 0.0, 0.0), (5, 0.8, 0.3, 0.0)]),
-                    pairs=np.array([[3, 5]]), pair_runs=np.array([2]))
-    state = reported(state, [3, 5], list(scans), [[0.0, 0.0], [0.3, 0.0]])
-    out, est, joined, _ = join_pairs(state, _parts([3, 5], [0.0, 0.3], (0.1, 0.1)), cfg)
+    filt = replace(FilterState.initial(cfg),
+                   mixture=pedestrians([(3, 0.9, 0.0, 0.0), (5, 0.8, 0.3, 0.0)]))
+    record = reported(TrackRecord(pairs=np.array([[3, 5]]), pair_runs=np.array([2])),
+                      [3, 5], list(scans), [[0.0, 0.0], [0.3, 0.0]])
+    out, out_record, est, joined, _ = join_pairs(filt, record,
+                                                 _parts([3, 5], [0.0, 0.3], (0.1, 0.1)), cfg)
     assert joined.tolist() == [junior] and est.label.tolist() == [senior]
-    assert out.mixture.label.tolist() == [senior] and out.reported.tolist() == [senior]
+    assert out.mixture.label.tolist() == [senior] and out_record.reported.tolist() == [senior]

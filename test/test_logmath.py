@@ -4,9 +4,7 @@ from hypothesis import given, strategies as st
 import numpy as np
 from scipy.special import logsumexp as scipy_lse
 
-from extended_tracker.logmath import (
-    logsumexp, lse1, lse_last, LSE_REDUCE_MAX,
-)
+from extended_tracker.filter.logmath import logsumexp, lse1, lse_last, LSE_REDUCE_MAX
 
 values = st.lists(st.one_of(st.floats(-800, 800), st.just(-np.inf)), min_size=1, max_size=12)
 

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import TrackerConfig
-from extended_tracker.messages import (
+from extended_tracker.pipeline import StepResult
+from extended_tracker.report.messages import (
     ELLIPSE_SEGMENTS, id_rgba, LINE_STRIP, markers_data, outline_xy, SHAPE_ELLIPSE,
     SHAPE_RECTANGLE, shapes, tracks_data,
 )
-from extended_tracker.pipeline import StepResult
-from extended_tracker.state import Estimates
+from extended_tracker.tracks.estimates import Estimates
 
 
 def estimates(rows):

@@ -1,11 +1,11 @@
 """GOSPA with the Gaussian-Wasserstein distance: metric axioms and hand-computed cases."""
 
-import numpy as np
 from hypothesis import given, strategies as st
+import numpy as np
 import pytest
 from scipy.linalg import sqrtm
 
-from extended_tracker.metrics import gospa, gw_distance, score_sequence
+from extended_tracker.evaluation.metrics import gospa, gw_distance, score_sequence
 
 
 def spd(rng, k):

@@ -77,10 +77,10 @@ def test_constants_and_field_names():
 
 
 def test_in_process_publish_subscribe_round_trip():
+    from extended_tracker_msgs.msg import ExtendedObjectArray
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
-    from extended_tracker_msgs.msg import ExtendedObjectArray
 
     ctx = Context()
     rclpy.init(context=ctx)
@@ -108,10 +108,10 @@ def test_in_process_publish_subscribe_round_trip():
 
 
 def test_rosbags_custom_type_and_cdr_compatibility(tmp_path):
-    from rclpy.serialization import deserialize_message, serialize_message
     from extended_tracker_msgs.msg import ExtendedObjectArray
+    from rclpy.serialization import deserialize_message, serialize_message
 
-    from extended_tracker.bagio import message_typestore
+    from extended_tracker.bag.bagio import message_typestore
 
     store = message_typestore()
     typename = 'extended_tracker_msgs/msg/ExtendedObjectArray'
@@ -151,7 +151,8 @@ def test_build_message_fills_defaults_converts_values_and_refuses_unknown_fields
     """rosbags messages from plain data: a field left out takes its type's default (a
     fixed array its length of zeros), numpy scalars become the plain Python values the
     CDR writer takes, and a misspelt field is an error, not a silent default."""
-    from extended_tracker.bagio import BagError, build_message, message_typestore, SCAN_TYPE
+    from extended_tracker.bag.bagio import build_message, message_typestore, SCAN_TYPE
+    from extended_tracker.errors import BagError
 
     store = message_typestore()
     obj = build_message(store, 'extended_tracker_msgs/msg/ExtendedObject', {'id': np.uint64(7)})
@@ -179,10 +180,10 @@ def test_the_message_definitions_come_from_the_installed_share_folder(monkeypatc
     ament installs them) even without AMENT_PREFIX_PATH; the source tree comes last."""
     import sys
 
-    from extended_tracker.bagio import _msg_dirs
+    from extended_tracker.bag.bagio import message_dirs
 
     monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
-    dirs = _msg_dirs()
+    dirs = message_dirs()
     assert dirs[0] == Path(sys.prefix) / 'share' / 'extended_tracker_msgs' / 'msg'
     assert dirs[-1] == ROOT / 'interfaces' / 'extended_tracker_msgs' / 'msg'
 
@@ -190,7 +191,7 @@ def test_the_message_definitions_come_from_the_installed_share_folder(monkeypatc
 def test_a_prefix_with_only_some_message_definitions_is_passed_over(tmp_path, monkeypatch):
     """An ament prefix that holds one of the two .msg files (a half-removed install) is
     not where the definitions are read from: the next place that has both is."""
-    from extended_tracker.bagio import find_msg_definitions, MSG_PACKAGE
+    from extended_tracker.bag.bagio import find_msg_definitions, MSG_PACKAGE
 
     partial = tmp_path / 'share' / MSG_PACKAGE / 'msg'
     partial.mkdir(parents=True)

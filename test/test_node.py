@@ -10,9 +10,8 @@ import time
 
 import numpy as np
 import pytest
-import yaml
-
 from rclpy.parameter import Parameter
+import yaml
 
 from extended_tracker.config import from_dict, to_dict, to_flat, TrackerConfig
 from extended_tracker.configio import default_yaml, load_yaml
@@ -139,7 +138,7 @@ def test_markers_are_built_only_while_someone_listens(marker_builds):
 def test_the_rviz_config_shows_what_the_node_publishes(harness):
     """rviz/tracker.rviz subscribes to the node's scan and marker topics with QoS that
     matches, and shows every marker namespace the node publishes."""
-    from extended_tracker.messages import MARKER_NAMESPACES
+    from extended_tracker.report.messages import MARKER_NAMESPACES
 
     with open(ROOT / 'rviz' / 'tracker.rviz') as f:
         config = yaml.safe_load(f)
@@ -274,8 +273,9 @@ def test_a_pipeline_failure_is_answered_counted_and_survived(harness, monkeypatc
     """A bug that makes step raise on one scan: the node stays up, publishes the previous
     estimates for that scan (its stamp, the tracked frame), with diagnostics at ERROR,
     logs and counts it, and carries on with the next scan from the unchanged state."""
-    import extended_tracker.ros.node as node_mod
     from diagnostic_msgs.msg import DiagnosticStatus
+
+    import extended_tracker.ros.node as node_mod
 
     fail_on_call(monkeypatch, node_mod, 'step', 15, RuntimeError('a bug'))
     data = simulate(tutorial_scene(), 2.0, seed=0)
@@ -313,6 +313,7 @@ def test_a_failure_to_build_the_messages_is_counted_and_survived(harness, monkey
     assert len(harness.markers) == len(harness.tracks) - 1 == 4
 
 
+@pytest.mark.slow
 def test_a_node_that_cannot_keep_up_says_so(harness, monkeypatch):
     """Scans 0.1 s apart, each taking 0.12 s: after ten in a row the node logs and counts
     falling_behind (in the diagnostics too), and again after ten more; at its normal pace
@@ -360,7 +361,7 @@ def test_only_slow_scans_in_a_row_are_falling_behind(harness):
         nonlocal t
         for _ in range(n):
             t += period
-            node._check_pace(t, took)
+            node.check_pace(t, took)
 
     scans(9, 0.12)
     scans(1, 0.05)
@@ -445,7 +446,7 @@ def test_parameters_from_the_yaml_file_and_descriptors():
     h = NodeHarness(args=['--ros-args', '--params-file', str(YAML)])
     try:
         assert h.node.cfg == TrackerConfig()
-        names = {p for p in h.node._parameters if '.' in p}
+        names = {p for p in h.node.list_parameters([], 0).names if '.' in p}
         assert names == set(to_flat(TrackerConfig()))
         d = h.node.describe_parameters(['model.rho'])[0]
         assert 'rho X + R' in d.description
@@ -687,8 +688,8 @@ def test_yaml_descriptors_and_dataclass_agree():
 def test_node_and_replay_publish_the_same(tmp_path):
     from rosbags.rosbag2 import Reader
 
-    from extended_tracker.bagio import message_typestore
-    from extended_tracker.replay import replay
+    from extended_tracker.bag.bagio import message_typestore
+    from extended_tracker.bag.replay import replay
 
     bag = tmp_path / 'scans'
     write_sim_bag(bag, 'tutorial', seed=3, duration=3.0)
@@ -744,6 +745,7 @@ def _node_until_it_ends(*ros_args, ros=True):
                           env=dict(os.environ))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('flag', ['--help', '-h'])
 def test_node_help_prints_its_usage_without_starting(flag):
     done = _node_until_it_ends(flag, ros=False)
@@ -763,6 +765,7 @@ def test_node_help_prints_its_usage_without_starting(flag):
      "Couldn't parse params file: '--params-file /no/such/params.yaml'"),
     (['--ros-args', '-r', 'scan'], "Couldn't parse remap rule: '-r scan'"),
 ])
+@pytest.mark.slow
 def test_a_command_line_rcl_refuses_is_one_fatal_line(argv, why):
     """rcl's reason for refusing the ROS arguments was a traceback from rclpy.init with
     status 1."""
@@ -775,6 +778,7 @@ def test_a_command_line_rcl_refuses_is_one_fatal_line(argv, why):
     assert len(fatal) == 1 and why in fatal[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('blocked', [False, True], ids=['', 'started-blocked'])
 @pytest.mark.parametrize('sig', ['SIGTERM', 'SIGINT'])
 def test_process_shuts_down_cleanly(sig, blocked):
@@ -840,12 +844,14 @@ def test_a_stop_asked_for_while_starting_ends_quietly(monkeypatch):
     assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == mask
 
 
+@pytest.mark.slow
 def test_process_refuses_an_invalid_parameter_with_the_reason():
     done = _node_until_it_ends('-p', 'model.mode:=kalman')
     assert done.returncode == 2
     assert "model.mode must be one of ('cphd', 'phd'), got 'kalman'" in done.stderr
 
 
+@pytest.mark.slow
 def test_a_whole_number_for_a_double_parameter_is_one_line_in_the_node_and_offline(tmp_path):
     """rclpy types parameters strictly: `p_survival: 1` (no decimal point) for a double
     stopped the node with a traceback from its constructor. It is now the one-line
@@ -927,6 +933,7 @@ def test_invalid_value_at_start_up_is_refused_and_leaves_no_context(monkeypatch)
     """An invalid parameter: the harness raises what the node raised, and shuts down the
     context it made for it."""
     import rclpy.context
+
     import extended_tracker.ros.testing as testing
 
     made = []
@@ -996,10 +1003,10 @@ def test_shutdown_after_a_signal_already_shut_the_context(monkeypatch):
 
     monkeypatch.setattr(rclpy, 'try_shutdown', raced)
     monkeypatch.setattr(rclpy, 'ok', lambda *a, **k: False)
-    node_mod._shutdown()                                   # the signal's shutdown stands
+    node_mod.shutdown_context()                                   # the signal's shutdown stands
     monkeypatch.setattr(rclpy, 'ok', lambda *a, **k: True)
     with pytest.raises(RuntimeError, match='already called'):
-        node_mod._shutdown()
+        node_mod.shutdown_context()
 
 
 class RecordingLogger:

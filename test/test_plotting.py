@@ -7,7 +7,7 @@ import pytest
 
 from extended_tracker.config import TrackerConfig
 from extended_tracker.pipeline import PipelineState, step
-from extended_tracker.plotting import plot_run, RunSketch
+from extended_tracker.report.plotting import plot_run, RunSketch
 from extended_tracker.sim.laser import demo_scene, simulate
 
 CFG = TrackerConfig()
@@ -55,7 +55,7 @@ def test_the_cloud_sample_stays_in_budget_and_evenly_spread(results):
     n = 50 * len(results)                                    # 1,500 scans
     for k in range(n):
         sketch.add(results[k % len(results)])
-    scans = [c[0] for c in sketch._clouds]
+    scans = [c[0] for c in sketch.clouds]
     s = sketch.stride
     assert s > 1 and s & (s - 1) == 0
     assert all(k % s == 0 for k in scans)
@@ -63,7 +63,7 @@ def test_the_cloud_sample_stays_in_budget_and_evenly_spread(results):
     with_returns = [k for k in range(0, n, s) if len(results[k % len(results)].points)
                     or len(results[k % len(results)].background_points)]
     assert scans == with_returns and scans[-1] >= n - s - len(results)
-    kept = sum(len(c[1]) + len(c[2]) + RunSketch.SCAN_COST for c in sketch._clouds)
+    kept = sum(len(c[1]) + len(c[2]) + RunSketch.SCAN_COST for c in sketch.clouds)
     assert kept <= 2 * budget
     per_pass = sum(len(r.estimates) for r in results)
     assert sum(len(sketch.track(lab)) for lab in sketch.tracks) == 50 * per_pass
@@ -84,7 +84,7 @@ def test_a_long_run_holds_bounded_memory_for_the_clouds(results):
         used = tracemalloc.get_traced_memory()[0]
     finally:
         tracemalloc.stop()
-    clouds = 2 * budget * 16 + 400 * len(sketch._clouds) + 100_000     # points, headers
+    clouds = 2 * budget * 16 + 400 * len(sketch.clouds) + 100_000     # points, headers
     tracks = objects * 6 * 8 * 1.2 + 10_000                            # array growth slack
     assert used < clouds + tracks, (used, clouds, tracks)
     # without the sample every scan's returns would be kept: far above that bound
@@ -112,9 +112,9 @@ def test_the_sample_thins_once_its_cost_passes_twice_the_budget_and_not_before()
     sketch = RunSketch(max_points=1_000)
     for _ in range(20):
         sketch.add(_made_up(76))
-    assert sketch.stride == 1 and len(sketch._clouds) == 20
+    assert sketch.stride == 1 and len(sketch.clouds) == 20
     sketch.add(_made_up(76))
-    assert sketch.stride == 2 and [c[0] for c in sketch._clouds] == list(range(0, 21, 2))
+    assert sketch.stride == 2 and [c[0] for c in sketch.clouds] == list(range(0, 21, 2))
 
 
 def test_the_sketch_draws_as_boxes_what_its_is_rectangle_says():
@@ -130,23 +130,23 @@ def test_the_view_holds_the_scene_with_a_metre_to_spare_and_the_sensor():
     far strays: the view reaches a metre beyond the square (the 0.5 and 99.5 percentiles
     leave the strays out) and holds the scanner, half a metre inside on every side.
     """
-    from extended_tracker.plotting import _limits
+    from extended_tracker.report.plotting import plot_limits
 
     g = np.linspace(0.0, 2.0, 40)
     square = np.column_stack([np.repeat(g, 40) - 4.0, np.tile(g, 40) + 2.0])
     strays = np.array([[-100.0, 100.0], [-90.0, 95.0], [-95.0, 90.0]])
-    lo, hi = _limits([square, strays])
+    lo, hi = plot_limits([square, strays])
     assert -5.0 <= lo[0] <= -4.95 and 4.95 <= hi[1] <= 5.0
     assert (lo[1], hi[0]) == (-0.5, 0.5)
-    assert _limits([np.zeros((0, 2))]) is None
+    assert plot_limits([np.zeros((0, 2))]) is None
 
 
 def test_a_scene_far_wider_than_deep_gets_the_widest_picture_and_a_readable_height():
-    from extended_tracker.plotting import _figure_size
+    from extended_tracker.report.plotting import figure_size
 
-    assert _figure_size((np.array([0.0, -0.5]), np.array([100.0, 0.5]))) == (16.0, 4.0)
-    assert _figure_size((np.array([-0.5, 0.0]), np.array([0.5, 100.0]))) == (4.0, 10.0)
-    assert _figure_size(None) == (10.0, 8.0)
+    assert figure_size((np.array([0.0, -0.5]), np.array([100.0, 0.5]))) == (16.0, 4.0)
+    assert figure_size((np.array([-0.5, 0.0]), np.array([0.5, 100.0]))) == (4.0, 10.0)
+    assert figure_size(None) == (10.0, 8.0)
 
 
 def test_what_plot_run_draws(tmp_path, saved_figures):
@@ -164,7 +164,7 @@ def test_what_plot_run_draws(tmp_path, saved_figures):
     import matplotlib.colors
     from matplotlib.patches import Polygon, Wedge
 
-    from extended_tracker.messages import id_rgba, outline_xy
+    from extended_tracker.report.messages import id_rgba, outline_xy
 
     run = []
     for k in range(12):
@@ -225,7 +225,7 @@ def test_the_picture_takes_the_proportions_of_a_long_scene(results, tmp_path, sa
 
     import matplotlib.pyplot as plt
 
-    from extended_tracker.state import Estimates
+    from extended_tracker.tracks.estimates import Estimates
 
     plot_run(results, tmp_path / 'room.png', title='t')
     assert _png_size(tmp_path / 'room.png') == (1100, 880)
@@ -258,10 +258,10 @@ def test_the_image_suffixes_are_those_savefig_writes_less_pgf():
 
     from matplotlib.backend_bases import FigureCanvasBase
 
-    from extended_tracker.imagefile import IMAGE_SUFFIXES
+    from extended_tracker.report.imagefile import IMAGE_SUFFIXES
 
     assert set(IMAGE_SUFFIXES) == set(FigureCanvasBase.get_supported_filetypes()) - {'pgf'}
-    loaded = subprocess.run([sys.executable, '-c', 'import sys, extended_tracker.imagefile; '
+    loaded = subprocess.run([sys.executable, '-c', 'import sys, extended_tracker.report.imagefile; '
                              'print("matplotlib" in sys.modules)'], capture_output=True,
                             text=True, check=True)
     assert loaded.stdout.strip() == 'False'

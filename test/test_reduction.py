@@ -1,13 +1,14 @@
 """GGIW merging: the Gaussian and inverse Wishart moment matches against sampling, the
 Gamma shape, the floor, and whose label a merge keeps."""
 
+from dataclasses import replace as evolve
+
 import numpy as np
 import pytest
 from scipy import stats
 
-from extended_tracker.ggiw import IW_OFFSET, Mixture
-from dataclasses import replace as evolve
-from extended_tracker.reduction import merge_groups, reduce_mixture
+from extended_tracker.filter.mixture import IW_OFFSET, Mixture
+from extended_tracker.filter.reduction import merge_groups, reduce_mixture
 
 from mixtures import pedestrians
 
@@ -34,6 +35,7 @@ def iw_samples(v, V, size, rng):
     return stats.invwishart(df=v - D - 1, scale=V).rvs(size=size, random_state=rng)
 
 
+@pytest.mark.slow
 def test_iw_merge_matches_the_mixture_moments_by_sampling():
     """The merged IW has the mixture's E[X^-1] and E[log|X|], both sides sampled."""
     rng = np.random.default_rng(7)
@@ -113,7 +115,7 @@ def test_iw_merge_of_line_like_members_stays_bounded():
     """
     import warnings
 
-    from extended_tracker.reduction import MIN_SEMI_AXIS
+    from extended_tracker.filter.reduction import MIN_SEMI_AXIS
 
     V = np.array([[[0.5069371854815066, -0.5277826890638175],
                    [-0.5277826890638175, 0.5494853698902643]],
@@ -133,14 +135,14 @@ def test_iw_merge_of_line_like_members_stays_bounded():
 
 def test_nu_solver_matches_brentq_and_clamps_to_the_bracket():
     """
-    ``_solve_nu`` against scipy's brentq on the same scalar equation, entry by entry, with
+    ``solve_nu`` against scipy's brentq on the same scalar equation, entry by entry, with
     roots inside the bracket, at either end, beyond it, and brackets of zero width (equal
     members), all in one batch.
     """
     from scipy.optimize import brentq
     from scipy.special import digamma
 
-    from extended_tracker.reduction import _solve_nu
+    from extended_tracker.filter.reduction import solve_nu
 
     def f(nu, t):
         return 2 * np.log(nu) - digamma(0.5 * nu) - digamma(0.5 * nu - 0.5) - t
@@ -153,7 +155,7 @@ def test_nu_solver_matches_brentq_and_clamps_to_the_bracket():
     nu_true = np.where(rng.random(k) < 0.6, rng.uniform(lo, hi),
                        np.where(rng.random(k) < 0.5, lo * 0.9, hi * 1.5 + 1))
     target = f(nu_true, 0.0)
-    got = _solve_nu(target, lo, hi, rng.uniform(lo, hi))
+    got = solve_nu(target, lo, hi, rng.uniform(lo, hi))
     for i in range(k):
         f_lo, f_hi = f(lo[i], target[i]), f(hi[i], target[i])
         if f_lo <= 0:
@@ -198,7 +200,7 @@ def test_gamma_merge_of_equal_members_keeps_their_shape_down_to_vanishing_shapes
     shape near 0, where ``c`` passes 1e16 and Minka's starting point, in its textbook
     form, cancelled to 0 (log 0 in the first Newton step, NaN weights after it).
     """
-    from extended_tracker.reduction import merge_gamma
+    from extended_tracker.filter.reduction import merge_gamma
 
     mix = evolve(mixture([0.6, 0.4], [14.0, 14.0], [extent(0.3, 0.2, 0.0)] * 2),
                  alpha=np.full(2, shape), beta=np.full(2, shape / 12.0))

@@ -7,10 +7,10 @@ import sys
 import numpy as np
 import pytest
 
-from extended_tracker.bagio import build_message, message_typestore, SCAN_TYPE, scan_data
+from extended_tracker.bag.bagio import build_message, message_typestore, scan_data, SCAN_TYPE
+from extended_tracker.bag.replay import replay
 from extended_tracker.config import from_dict
 from extended_tracker.errors import BagError
-from extended_tracker.replay import replay
 from extended_tracker.sim.laser import simulate, tutorial_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -308,7 +308,7 @@ def test_a_ros1_bag_file_inside_a_ros2_bag_folder_is_read_as_itself(tmp_path):
     """A storage file named is read through its folder's metadata.yaml, but a ROS 1 .bag
     file is a whole recording: one kept inside a ROS 2 bag's folder is read, not the
     folder's bag."""
-    from extended_tracker.bagio import open_scans
+    from extended_tracker.bag.bagio import open_scans
 
     write_ros2(tmp_path / 'both', seconds=0.5)
     write_ros1(tmp_path / 'both' / 'old.bag', seconds=0.5)
@@ -341,7 +341,7 @@ def test_an_undecodable_scan_record_stops_with_its_topic(tmp_path):
 def test_progress_bar_on_a_terminal_only(tmp_path):
     import io
 
-    from extended_tracker.replay import _Progress
+    from extended_tracker.bag.replay import _Progress
 
     class Terminal(io.StringIO):
         def isatty(self):
@@ -374,7 +374,7 @@ def test_no_laserscan_topic(tmp_path):
 
 
 def test_interrupted_replay_leaves_no_bag(tmp_path, monkeypatch):
-    import extended_tracker.replay as rp
+    import extended_tracker.bag.replay as rp
 
     write_ros2(tmp_path / 'in', seconds=2.0)
     real_step = rp.step
@@ -425,13 +425,14 @@ def test_zero_header_stamps_take_the_record_time(tmp_path):
 def test_the_summary_of_one_scan_and_of_none_gives_detections_per_scan():
     """Detections per scan divide by the scans, one included; with none there is no
     division by zero."""
-    from extended_tracker.replay import ReplaySummary
+    from extended_tracker.bag.replay import ReplaySummary
 
     assert 'valid detections 7 (7.0 per scan)' in ReplaySummary(scans=1,
                                                                 valid_detections=7).lines()
     assert 'valid detections 0 (0.0 per scan)' in ReplaySummary().lines()
 
 
+@pytest.mark.slow
 def test_cli_replay_prints_a_summary(tmp_path):
     write_ros2(tmp_path / 'in', seconds=1.0)
     exe = Path(sys.executable).with_name('extended-tracker')
@@ -594,8 +595,8 @@ def test_a_signal_whose_exception_is_lost_still_stops_the_command(command, sig, 
     import signal
 
     from extended_tracker import cli
-    import extended_tracker.evaluate as evaluate_mod
-    import extended_tracker.replay as replay_mod
+    import extended_tracker.bag.replay as replay_mod
+    import extended_tracker.evaluation.evaluate as evaluate_mod
     from extended_tracker.sim import laser
 
     seen = []                                     # scans made (simulate) or tracked
@@ -651,7 +652,7 @@ def test_a_signal_lost_outside_the_scan_loops_still_ends_the_command(where, sig,
     the command sees it; while a finished bag is closed or its truth written, the bag is
     not moved into place. Either way the signal's status and line, not 0."""
     from extended_tracker import cli, stopping
-    from extended_tracker.bagio import staged_bag
+    from extended_tracker.bag.bagio import staged_bag
 
     def lost(args):
         if where == 'printing':
@@ -702,7 +703,7 @@ def test_a_plot_name_no_picture_can_have_is_refused_before_the_replay(tmp_path, 
                                                                        why):
     """A folder, or a suffix savefig cannot write (pgf needs LaTeX): a one-line error
     before a scan is read, no bag; these ended a whole replay in savefig's traceback."""
-    import extended_tracker.replay as replay_mod
+    import extended_tracker.bag.replay as replay_mod
     from extended_tracker.cli import main
 
     write_ros2(tmp_path / 'in', seconds=0.5)
@@ -761,6 +762,7 @@ def test_cli_refuses_an_option_it_does_not_have(tmp_path, capsys):
     assert not (tmp_path / 'out').exists()
 
 
+@pytest.mark.slow
 def test_real_replays_every_folder_with_a_line_each(tmp_path, capsys):
     """`extended-tracker real` on a folder of recordings: one line of figures per bag, its
     PNG and output bag, and a bag's events under its line with the first reason."""
@@ -817,6 +819,7 @@ def test_real_on_one_bag_replays_it_and_on_no_bags_says_so(tmp_path, capsys):
     assert not (tmp_path / 'out_none').exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('out_name', ['.', 'out'])
 def test_real_run_again_with_its_output_in_the_data_folder_replays_only_recordings(
         tmp_path, capsys, out_name):
@@ -843,6 +846,7 @@ def test_real_run_again_with_its_output_in_the_data_folder_replays_only_recordin
         ['one.png', 'one_tracks'] + (['one'] if out_name == '.' else []))
 
 
+@pytest.mark.slow
 def test_real_goes_on_past_a_folder_it_cannot_replay(tmp_path, capsys):
     """A folder that is no bag (or a broken one) gets a line saying why; the bags after it
     (folders, and ROS 1 files beside them) are still replayed, and the exit status says
@@ -900,8 +904,9 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
     are not the last scan's."""
     from dataclasses import fields
 
-    import extended_tracker.replay as rp
-    from extended_tracker.state import Estimates
+    import extended_tracker.bag.replay as rp
+    from extended_tracker.tracks.estimates import Estimates
+
     from mixtures import estimates
 
     real, seen = rp.step, []
@@ -952,7 +957,7 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
 def test_the_plot_shows_the_field_of_view_of_the_first_readable_scan(tmp_path, monkeypatch):
     """The sector drawn is that of the scans: from angle_min to its last beam (not one
     beyond), out to range_max, taken from the first scan that is not malformed."""
-    import extended_tracker.plotting as plotting
+    import extended_tracker.report.plotting as plotting
 
     drawn = {}
     monkeypatch.setattr(plotting, 'plot_run', lambda sketch, path, title='', fov=None:
@@ -973,13 +978,13 @@ def test_the_plot_shows_the_field_of_view_of_the_first_readable_scan(tmp_path, m
 
 
 def test_fov_and_frame_names_at_their_edges():
-    from extended_tracker.replay import _fov, ros2_frame_id
+    from extended_tracker.bag.replay import ros2_frame_id, scan_fov
 
     scan = sim_scans(0.1)[0]
     scan.range_max = float('inf')            # no range to draw the sector out to
-    assert _fov(scan) is None
+    assert scan_fov(scan) is None
     scan.range_max, scan.angle_increment = 5.0, -scan.angle_increment   # clockwise beams
-    assert _fov(scan) == pytest.approx((-1.5 * np.pi, -np.pi / 2, 5.0))
+    assert scan_fov(scan) == pytest.approx((-1.5 * np.pi, -np.pi / 2, 5.0))
     assert [ros2_frame_id(f) for f in ('/laser', '//base/laser', 'laser', '/')] == [
         'laser', 'base/laser', 'laser', '/']
 
@@ -1005,7 +1010,7 @@ def test_a_stale_staging_folder_of_the_same_name_is_cleared(tmp_path):
     kill -9) is removed first: the new bag is written, with nothing of the old in it."""
     import os
 
-    from extended_tracker.bagio import staged_bag
+    from extended_tracker.bag.bagio import staged_bag
 
     out = tmp_path / 'out'
     stale = tmp_path / f'.out.partial-{os.getpid()}'
@@ -1018,12 +1023,13 @@ def test_a_stale_staging_folder_of_the_same_name_is_cleared(tmp_path):
     assert not stale.exists()
 
 
+@pytest.mark.slow
 def test_real_with_a_config_replays_every_bag_with_it_and_one_replay_output_by_name(
         tmp_path, capsys, monkeypatch):
     """`real --config` uses that config for every bag, the leg-height ones included (its
     line says --config); `real --data` naming one earlier replay's output replays it (the
     skip is for such bags met inside a folder)."""
-    import extended_tracker.replay as rp
+    import extended_tracker.bag.replay as rp
     from extended_tracker.cli import main
     from extended_tracker.configio import load_yaml
 

@@ -12,11 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from extended_tracker.cli import _config, REAL_PRESETS, REAL_TOPICS
-from extended_tracker.ggiw import Mixture
-from extended_tracker.replay import replay_results
+from extended_tracker.bag.replay import replay_results
+from extended_tracker.cli import load_config, REAL_PRESETS, REAL_TOPICS
+from extended_tracker.filter.mixture import Mixture
 
 from lastbit import assert_same_tracks, other_cpu
+
+pytestmark = pytest.mark.slow  # whole scenes at several scan rates, or replays
 
 REAL = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real'
 MIR = 'mir_legs_test_stationary'
@@ -43,7 +45,7 @@ def test_weights_equal_but_for_rounding_order_by_index():
 
 
 def _replay(name, scans):
-    cfg = _config(None, REAL_PRESETS.get(name))
+    cfg = load_config(None, REAL_PRESETS.get(name))
     return [(res.estimates.label.tolist(), res.estimates.m.copy()) for _, res in
             itertools.islice(replay_results(REAL / name, cfg, REAL_TOPICS.get(name)), scans)]
 

@@ -226,10 +226,10 @@ def test_polar_cartesian_polar_round_trip(ranges, a0, inc, negative):
 
 
 def test_median_helper_equals_numpy_median():
-    from extended_tracker.sensing.scan import _median
+    from extended_tracker.sensing.scan import median_of
 
     rng = np.random.default_rng(0)
     for n in list(range(1, 12)) + [360, 1080]:
         for _ in range(20):
             x = rng.normal(0, 1, n) * 10.0 ** rng.integers(-8, 8)
-            assert _median(x) == float(np.median(x))
+            assert median_of(x) == float(np.median(x))

@@ -15,8 +15,10 @@ import dataclasses
 
 import pytest
 
-from extended_tracker import evaluate
-from extended_tracker.evaluate import run_scenario, VARIANTS
+from extended_tracker.evaluation import evaluate
+from extended_tracker.evaluation.evaluate import run_scenario, VARIANTS
+
+pytestmark = pytest.mark.slow  # whole scenes at several scan rates, or replays
 
 
 def scored_at(monkeypatch, name, hz):

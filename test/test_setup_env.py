@@ -4,6 +4,8 @@ import os
 from pathlib import Path
 import sys
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -57,6 +59,7 @@ def test_bootstrap_refuses_when_no_interpreter_can_build_the_messages(tmp_path):
     assert not (tmp_path / 'venv').exists()             # nothing half made
 
 
+@pytest.mark.slow
 def test_bootstrap_takes_the_first_usable_interpreter_in_its_order(tmp_path):
     # the interpreter running the tests passed the check when its venv was made; a
     # candidate before it that fails the check is skipped. Stopped right after the venv is

@@ -5,27 +5,57 @@ hold of confirmed tracks wholly in shadow.
 """
 
 from collections import Counter
+from dataclasses import replace as evolve
 from itertools import product
 
 import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.cphd import add_cardinality, thin_cardinality
-from extended_tracker.ggiw import cell_stats, gate_pairs, IW_OFFSET, Mixture, PairUpdate
-from dataclasses import replace as evolve
+from extended_tracker.diagnostics import Diagnostics
+from extended_tracker.filter.cardinality import add_cardinality, thin_cardinality
+from extended_tracker.filter.ggiw import cell_stats, gate_pairs, PairUpdate
+from extended_tracker.filter.mixture import IW_OFFSET, Mixture
+from extended_tracker.filter.state import FilterState, predict_state
+from extended_tracker.filter.update import (
+    gate_threshold, pair_updates, sensor_noise, SensorTerms, update,
+)
 from extended_tracker.pipeline import PipelineState, step
-from extended_tracker.sensing.scan import Header, ScanData, scan_to_points, Stamp
-from extended_tracker.sensing.shadow import detection_model, sparse_births
+from extended_tracker.sensing.detection import detection_model, sparse_births
+from extended_tracker.sensing.scan import Header, scan_to_points, ScanData, Stamp
 from extended_tracker.sim.laser import LaserSpec, occlusion_scene, Scene, SimObject, simulate
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import (filter_step, gate_threshold, predict_state,
-                                      sensor_noise, update_state)
+from extended_tracker.tracker import filter_step, TrackerState
+from extended_tracker.tracks.manage import manage_tracks
+from extended_tracker.tracks.record import TrackRecord
 
 from lastbit import assert_same_tracks
 from mixtures import assert_same_posterior, reported
 
 CFG = from_dict({'detection': {'p_d0': 0.9, 'max_widen': 0.0}})
+
+
+def run_update(state, pred, pts, p_d, cfg, shadowed=None, pair_p_d=None,
+               refuse_births=None, area=None):
+    """
+    The filter update of ``pred`` (the prediction of the ``TrackerState`` ``state``) with
+    ``pts``, the p_D ``p_d`` and ``shadowed`` components, then track management. The pairs
+    take their component's p_D unless ``pair_p_d`` (a (k,) array over the pairs, or a
+    function of them) says otherwise; ``refuse_births(pairs)`` names the cells whose
+    births the sensor could not have seen.
+    """
+    sensor = SensorTerms(np.asarray(p_d, dtype=float), shadowed=shadowed)
+    diag = Diagnostics(detections=len(pts))
+    pairs = pair_updates(pred.mixture, pts, cfg, sensor, area)
+    if pair_p_d is None:
+        pair_p_d = sensor.p_d[pairs.comp]
+    elif callable(pair_p_d):
+        pair_p_d = pair_p_d(pairs)
+    unseen = None if refuse_births is None else refuse_births(pairs)
+    filt, facts = update(pred, pairs, sensor, pair_p_d, cfg, 0.1, diag, birth_unseen=unseen,
+                         confirmed=state.tracks.confirmed_labels(cfg.extraction))
+    filt, tracks, shown = manage_tracks(filt, state.tracks, facts, cfg, 0.1, pred.next_label,
+                                        diag)
+    return TrackerState(filt, tracks), shown, diag
 
 
 def component_at(x, y, semi=0.25, p_std=0.02):
@@ -70,12 +100,12 @@ def test_the_interval_is_widened_by_the_position_std_up_to_max_widen(sigma, k, w
     """The widened interval's half-width is the extent's across the line of sight plus
     k position stds across it, at most max_widen (0.3 m): here an object 5 m ahead, its
     extent 0.25 m across, sigma the position std across the line of sight."""
-    from extended_tracker.sensing.shadow import _geometry
+    from extended_tracker.sensing.shadow import ellipse_geometry
 
     mix = component_at(5.0, 0.0, p_std=0.01)
     P = mix.P.copy()
     P[0, 1, 1] = sigma ** 2
-    _, half, half_widened, *_ = _geometry(mix.m, mix.expected_extent(), P, k, 0.3)
+    _, half, half_widened, *_ = ellipse_geometry(mix.m, mix.expected_extent(), P, k, 0.3)
     assert half[0] == pytest.approx(np.arcsin(0.25 / 5.0), rel=1e-12)
     assert half_widened[0] == pytest.approx(np.arcsin((0.25 + widen) / 5.0), rel=1e-12)
 
@@ -85,12 +115,12 @@ def test_the_near_and_far_ranges_come_from_the_extent_along_the_line_of_sight():
     and far ranges are 5 -+ 1 m (its semi-axis along the sight line) and its half-angle
     asin(0.2 / 5) (its semi-axis across); turned a quarter, 5 -+ 0.2 m and asin(1 / 5).
     An outline about the sensor has its near range at the sensor, not behind it."""
-    from extended_tracker.sensing.shadow import _geometry
+    from extended_tracker.sensing.shadow import ellipse_geometry
 
     m = np.array([[5.0, 0.0, 0.0, 0.0], [0.0, 5.0, 0.0, 0.0], [0.3, 0.0, 0.0, 0.0]])
     X = np.array([np.diag([1.0, 0.04]), np.diag([1.0, 0.04]), np.eye(2)])
     P = np.tile(np.eye(4) * 1e-6, (3, 1, 1))
-    bearing, half, _, r_near, r_far, r, _ = _geometry(m, X, P, 0.0, 0.0)
+    bearing, half, _, r_near, r_far, r, _ = ellipse_geometry(m, X, P, 0.0, 0.0)
     np.testing.assert_allclose(r_near, [4.0, 4.8, 0.0], atol=1e-12)
     np.testing.assert_allclose(r_far[:2], [6.0, 5.2], atol=1e-12)
     np.testing.assert_allclose(half[:2], np.arcsin([0.2 / 5.0, 1.0 / 5.0]), rtol=1e-12)
@@ -101,11 +131,11 @@ def test_an_object_thin_across_the_line_of_sight_has_no_offset():
     """Seen end on, an object has no width to shift along: whatever the shift of its seen
     beams, its centroid offset is 0 (extents of zero and of 0.1 um width across the sight
     line)."""
-    from extended_tracker.sensing.shadow import _centroid_offset
+    from extended_tracker.sensing.shadow import visible_centroid_offset
 
     X = np.array([np.diag([0.5, 0.0]), np.diag([0.5, 1e-14]), np.diag([0.04, 0.04])])
     u = np.tile([0.0, 1.0], (3, 1))                      # across a sight line along x
-    offset = _centroid_offset(X, u, np.array([0.1, 0.1, 0.1]))
+    offset = visible_centroid_offset(X, u, np.array([0.1, 0.1, 0.1]))
     np.testing.assert_array_equal(offset[:2], np.zeros((2, 2)))
     np.testing.assert_allclose(offset[2], [0.0, 0.1], atol=1e-15)   # a round one: u shift
 
@@ -199,14 +229,14 @@ def test_tracks_do_not_hinge_on_the_last_bit(monkeypatch, nudge, atol):
     from extended_tracker.sensing import shadow
     from extended_tracker.sim.laser import tutorial_scene
 
-    geometry = shadow._geometry
+    geometry = shadow.ellipse_geometry
 
     def run(nudged):
         def geometry_nudged(*args, **kwargs):
             bearing, *rest = geometry(*args, **kwargs)
             return (np.nextafter(bearing, np.inf), *rest)
 
-        monkeypatch.setattr(shadow, '_geometry', geometry_nudged
+        monkeypatch.setattr(shadow, 'ellipse_geometry', geometry_nudged
                             if nudged and nudge == 'bearing' else geometry)
         cfg = from_dict({})
         state = PipelineState.initial(cfg)
@@ -367,6 +397,7 @@ def track_continuity(model, seed, background=True):
     return len(set(labels)) == 1 and ids[-1] is not None, hidden, Counter(ids)
 
 
+@pytest.mark.slow
 def test_occlusion_scan_shadow_keeps_the_id_constant_pd_does_not():
     """A pedestrian walks behind a standing one at 0.6 m/s, fully hidden for ~1.8 s."""
     kept = {'scan_shadow': 0, 'constant': 0}
@@ -380,6 +411,7 @@ def test_occlusion_scan_shadow_keeps_the_id_constant_pd_does_not():
     assert kept['constant'] <= 2, kept
 
 
+@pytest.mark.slow
 def test_occlusion_estimate_shadow_keeps_the_id_when_the_occluder_is_tracked():
     """The same walk with p_D from the other estimates' shadows. The standing occluder
     must be a track to cast one, so the background is off (with it on, a person standing
@@ -442,7 +474,7 @@ def test_estimate_shadow_is_cast_by_other_confident_labels_in_front_only():
 
 
 def test_range_minimum_matches_slices():
-    from extended_tracker.sensing.shadow import _range_min
+    from extended_tracker.sensing.shadow import range_min_over
 
     rng = np.random.default_rng(3)
     for n in (1, 2, 7, 64, 1081):
@@ -450,7 +482,7 @@ def test_range_minimum_matches_slices():
         values[rng.random(n) < 0.2] = np.inf
         lo = rng.integers(0, n, 300)
         hi = np.minimum(lo + 1 + rng.integers(0, n, 300), n)
-        got = _range_min(values, lo, hi)
+        got = range_min_over(values, lo, hi)
         want = np.array([values[a:b].min() for a, b in zip(lo, hi)])
         assert np.array_equal(got, want)
 
@@ -464,7 +496,7 @@ def test_visible_fraction_matches_a_per_component_loop(k, halves):
     over each interval's beams; many wide intervals take the range-minimum path, a few
     narrow ones the plain gather.
     """
-    from extended_tracker.sensing.shadow import _visible_fraction
+    from extended_tracker.sensing.shadow import visible_fraction
 
     rng = np.random.default_rng(5)
     objects = [SimObject(tuple(rng.uniform([-6, -6], [6, 6])), a=0.3, b=0.2) for _ in range(12)]
@@ -490,7 +522,7 @@ def test_visible_fraction_matches_a_per_component_loop(k, halves):
     k += len(i)
     r_near = rng.uniform(0.5, 10.0, k)
     margin = 0.3
-    frac, shift = _visible_fraction(bearing, half, r_near, sp, sp.ranges, margin)
+    frac, shift = visible_fraction(bearing, half, r_near, sp, sp.ranges, margin)
     half_step = abs(sp.angle_step) / 2
     for i in range(k):
         inside = np.flatnonzero((ang >= bearing[i] - half[i]) & (ang <= bearing[i] + half[i]))
@@ -584,7 +616,7 @@ def test_a_full_turn_scanner_tracks_all_round(angle_min):
 def two_tracks(cfg, scans=12, seed=3):
     """A filter state tracking two objects, 10 m apart, from point clusters."""
     rng = np.random.default_rng(seed)
-    state = FilterState.initial(cfg)
+    state = TrackerState.initial(cfg)
     for _ in range(scans):
         pts = np.vstack([np.array([3.0, 1.0]) + rng.normal(0, 0.1, (8, 2)),
                          np.array([3.0, -9.0]) + rng.normal(0, 0.1, (8, 2))])
@@ -605,7 +637,7 @@ def far_object_update(mode, returns, w_far=None):
     """
     cfg = from_dict({'model': {'mode': mode}})
     state, rng = two_tracks(cfg)
-    pred = predict_state(state, 0.1, cfg)
+    pred = predict_state(state.filter, 0.1, cfg)
     mix = pred.mixture
     far = mix.m[:, 1] < -4.0
     assert far.sum() == 1 and (~far).any()
@@ -620,16 +652,16 @@ def far_object_update(mode, returns, w_far=None):
         comp, _ = gate_pairs(mix, stats, cfg.model.rho, sensor_noise(cfg), gate_threshold(cfg))
         assert far[comp].any()                                   # in the object's gate
     p_d = np.full(len(mix), 0.9)
-    hold = update_state(pred, pts, p_d, cfg, clutter_area=200.0,
-                        shadowed=np.ones(len(mix), dtype=bool))
-    return cfg, pred, pts, p_d, far, hold
+    hold = run_update(state, pred, pts, p_d, cfg, shadowed=np.ones(len(mix), dtype=bool),
+                      area=200.0)
+    return cfg, state, pred, pts, p_d, far, hold
 
 
 @pytest.mark.parametrize('returns, held, mode', HOLD_CASES)
 def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(returns, held,
                                                                            mode):
     """
-    ``update_state``'s hold of hidden components, for a second tracked object (10 m from
+    The update's hold of hidden components, for a second tracked object (10 m from
     the first) that has no returns, returns 0.5 m beside its predicted centre (in its
     gate, off its outline: an occluder's edge) or returns on it. Oracle: the same update
     with p_D 0 given to that object's component where it is held (in the
@@ -637,14 +669,14 @@ def test_a_hold_is_p_d_zero_unless_a_return_lies_on_the_predicted_outline(return
     field of the posterior and the cardinality agree. In CPHD mode a label held with no
     returns in its gate is also kept out of the update (the next test).
     """
-    cfg, pred, pts, p_d, far, (hold, _, diag) = far_object_update(mode, returns)
+    cfg, state, pred, pts, p_d, far, (hold, _, diag) = far_object_update(mode, returns)
     # the hold is in the missed-detection factor alone: the pairs keep their p_D
-    oracle, _, _ = update_state(pred, pts, np.where(far & held, 0.0, p_d), cfg,
-                                clutter_area=200.0,
-                                pair_p_d=lambda _mix, comp, _m, _P: p_d[comp])
+    oracle, _, _ = run_update(state, pred, pts, np.where(far & held, 0.0, p_d), cfg,
+                              pair_p_d=lambda pairs: p_d[pairs.comp], area=200.0)
     for f in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label'):
-        np.testing.assert_array_equal(getattr(hold.mixture, f), getattr(oracle.mixture, f))
-    np.testing.assert_array_equal(hold.log_card, oracle.log_card)
+        np.testing.assert_array_equal(getattr(hold.filter.mixture, f),
+                                      getattr(oracle.filter.mixture, f))
+    np.testing.assert_array_equal(hold.filter.log_card, oracle.filter.log_card)
     assert diag.held == int(held)
 
 
@@ -660,32 +692,31 @@ def test_a_label_wholly_out_of_sight_is_kept_out_of_the_cphd_update(w_far):
     added. Held this way the far object keeps its weight, where a plain miss at p_D 0.9
     takes it to about half.
     """
-    cfg, pred, pts, p_d, far, (got, _, diag) = far_object_update('cphd', None, w_far)
+    cfg, state, pred, pts, p_d, far, (got, _, diag) = far_object_update('cphd', None, w_far)
     w = float(pred.mixture.w[far][0])
     kept = min(w, 1.0)
     log_card = thin_cardinality(pred.log_card, kept)
     if w > 1.0:
         rest = evolve(pred, mixture=pred.mixture.with_weights(
             np.where(far, w - kept, pred.mixture.w)), log_card=log_card)
-        want, _, _ = update_state(rest, pts, np.where(far, 0.0, p_d), cfg,
-                                  clutter_area=200.0)
+        want, _, _ = run_update(state, rest, pts, np.where(far, 0.0, p_d), cfg, area=200.0)
     else:
         rest = evolve(pred, mixture=pred.mixture.take(~far), log_card=log_card)
-        want, _, _ = update_state(rest, pts, p_d[~far], cfg, clutter_area=200.0,
-                                  shadowed=np.ones(int((~far).sum()), dtype=bool))
+        want, _, _ = run_update(state, rest, pts, p_d[~far], cfg,
+                                shadowed=np.ones(int((~far).sum()), dtype=bool), area=200.0)
     assert diag.held == 1
-    g, o = got.mixture, want.mixture
+    g, o = got.filter.mixture, want.filter.mixture
     g_far, o_far = g.m[:, 1] < -4.0, o.m[:, 1] < -4.0
     for f in ('w', 'alpha', 'beta', 'm', 'P', 'v', 'V', 'label'):
         np.testing.assert_allclose(getattr(g.take(~g_far), f), getattr(o.take(~o_far), f),
                                    rtol=1e-12, atol=1e-12)
     assert g.w[g_far].sum() == pytest.approx(kept + o.w[o_far].sum(), rel=1e-12)
-    np.testing.assert_allclose(got.log_card, add_cardinality(want.log_card, kept),
+    np.testing.assert_allclose(got.filter.log_card, add_cardinality(want.filter.log_card, kept),
                                rtol=1e-12, atol=1e-12)
     if w < 1.0:
-        plain, _, _ = update_state(pred, pts, p_d, cfg, clutter_area=200.0)
+        plain = run_update(state, pred, pts, p_d, cfg, area=200.0)[0].filter.mixture
         assert g.w[g_far].sum() == pytest.approx(w, rel=1e-12)
-        assert plain.mixture.w[plain.mixture.m[:, 1] < -4.0].sum() < 0.6 * w
+        assert plain.w[plain.m[:, 1] < -4.0].sum() < 0.6 * w
 
 
 @pytest.mark.parametrize('added', [0.0005, 0.4, 1.0, 1.3, 2.75])
@@ -731,15 +762,15 @@ def test_only_confirmed_labels_wholly_in_shadow_are_held():
     cfg = from_dict({'model': {'mode': 'phd'}})
     mix = two_components((5.0, 0.0), (5.0, 2.0))
     mix = evolve(mix, label=np.array([4, 7]))
-    pred = reported(evolve(FilterState.initial(cfg), mixture=mix), [4, 7], [5, 1],
-                    mix.m[:, :2])
-    assert pred.confirmed_rows(cfg.extraction).tolist() == [True, False]
+    pred = evolve(FilterState.initial(cfg), mixture=mix)
+    state = TrackerState(pred, reported(TrackRecord(), [4, 7], [5, 1], mix.m[:, :2]))
+    assert state.tracks.confirmed_rows(cfg.extraction).tolist() == [True, False]
     none, p_d = np.zeros((0, 2)), np.full(2, 0.9)
 
     def update(config, shadowed, p=p_d):
-        new, _, diag = update_state(pred, none, p, config, clutter_area=200.0,
-                                    shadowed=shadowed)
-        return new.mixture.w, diag.held
+        new, _, diag = run_update(state, pred, none, p, config, shadowed=shadowed,
+                                  area=200.0)
+        return new.filter.mixture.w, diag.held
 
     w, held = update(cfg, np.array([True, True]))
     assert held == 1
@@ -759,22 +790,23 @@ def test_a_cell_on_a_held_components_outline_lets_the_miss_stand():
     the centre in the metric of the expected extent plus the position covariance plus the
     sensor noise (written out here). Cells at squared distance 0.9 and 1.1 along x.
     """
-    from extended_tracker.tracker import _held_p_d, HOLD_OUTLINE, sensor_noise
+    from extended_tracker.filter.hidden import held_p_d, HOLD_OUTLINE
 
     assert HOLD_OUTLINE == 1.0
     cfg = from_dict({})
     mix = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.1), label=np.array([4]))
-    pred = reported(evolve(FilterState.initial(cfg), mixture=mix), [4], [5], mix.m[:, :2])
+    confirmed = reported(TrackRecord(), [4], [5], mix.m[:, :2]).confirmed_labels(cfg.extraction)
     R = sensor_noise(cfg)
     S = mix.expected_extent()[0] + mix.P[0, :2, :2] + R
     held = []
     for d2 in (0.9, 1.1):
         x = 5.0 + np.sqrt(d2 * S[0, 0])                     # S is diagonal here
-        p_d, h = _held_p_d(pred, cfg, np.array([0.8]), np.array([True]), np.array([0]),
-                           np.array([0]), np.array([[x, 0.0]]), R)
+        p_d, h = held_p_d(mix, confirmed, np.array([0.8]), np.array([True]), np.array([0]),
+                          np.array([0]), np.array([[x, 0.0]]), R)
         held.append((h.tolist(), p_d.tolist()))
     assert held == [([False], [0.8]), ([True], [0.0])]
 
+@pytest.mark.slow
 @pytest.mark.parametrize('hold', [True, False])
 def test_a_walker_hidden_for_three_seconds_stays_reported_with_the_hold(hold):
     """
@@ -943,6 +975,7 @@ def test_a_walker_passing_right_in_front_of_the_scanner_is_never_dropped(x):
             assert dropped == 0, seed
 
 
+@pytest.mark.slow
 def test_keeping_labels_out_of_sight_apart_keeps_the_crowds_hidden_walkers(monkeypatch):
     """
     crowd20, CPHD with scan shadow: with one object's worth of each label wholly out of
@@ -951,11 +984,12 @@ def test_keeping_labels_out_of_sight_apart_keeps_the_crowds_hidden_walkers(monke
     same run with nothing kept apart (the labels held, as in PHD mode, but scaled by
     the cardinality as every missed weight is).
     """
-    from extended_tracker import evaluate, tracker
+    from extended_tracker.evaluation import evaluate
+    from extended_tracker.filter import update
 
     variant = evaluate.VARIANTS['CPHD, scan shadow']
     apart = evaluate.run_scenario('crowd20', variant)[0]
-    monkeypatch.setattr(tracker, '_out_of_sight', lambda *args: None)
+    monkeypatch.setattr(update, 'out_of_sight', lambda *args: None)
     scaled = evaluate.run_scenario('crowd20', variant)[0]
     assert apart.hidden == scaled.hidden == 286
     assert apart.hidden_kept >= scaled.hidden_kept + 20, (apart.hidden_kept,
@@ -1014,36 +1048,33 @@ def test_a_sparse_track_is_dropped_with_its_weight(mode):
 @pytest.mark.parametrize('mode', ['cphd', 'phd'])
 def test_a_refused_birth_is_a_cell_too_small_to_be_born_from(mode):
     """
-    ``update_state(no_birth=...)`` refusing every birth it is asked about gives the
-    update of ``birth.min_points`` 3, where the same two returns (5 cm apart, far from
+    The update refusing every birth (``birth_unseen``) gives the update of
+    ``birth.min_points`` 3, where the same two returns (5 cm apart, far from
     any track) are too few to be born from: both leave them to clutter return by return.
-    It is asked only about cells no component is paired with: the track's own cell (ten
-    returns in a row, one cell in every partition) is not among them, and is born from
-    as before (the cell of 10 passes ``min_points`` 3 too).
+    The refusal counts only on cells no component is paired with: the track's own cell
+    (ten returns in a row, one cell in every partition) is not among them, and is born
+    from as before (the cell of 10 passes ``min_points`` 3 too).
     """
     base = {'model': {'mode': mode, 'surveillance_area': 400.0}}
     cfg2, cfg3 = from_dict(base), from_dict({**base, 'birth': {'min_points': 3}})
     track = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.05), w=np.array([0.9]))
-    state = FilterState.initial(cfg2)
-    state = evolve(state, mixture=track, next_label=2)
+    state = TrackerState(evolve(FilterState.initial(cfg2), mixture=track, next_label=2))
     pts = np.vstack([np.column_stack([np.full(10, 4.9), np.linspace(-0.22, 0.23, 10)]),
                      [[-3.0, 2.0], [-3.05, 2.0]]])
-    pred = predict_state(state, 0.1, cfg2)
+    pred = predict_state(state.filter, 0.1, cfg2)
     p_d = np.full(len(pred.mixture), 0.9)
-    asked = []
 
-    def refuse_all(births):
-        asked.append(births.m[:, :2].copy())
-        return np.ones(len(births.alpha), dtype=bool)
+    def refuse_all(pairs):
+        return np.ones(pairs.n_cells, dtype=bool)
 
-    a, _, diag_a = update_state(pred, pts, p_d, cfg2, no_birth=refuse_all)
-    b, _, diag_b = update_state(pred, pts, p_d, cfg3)
+    a, _, diag_a = run_update(state, pred, pts, p_d, cfg2, refuse_births=refuse_all)
+    b, _, diag_b = run_update(state, pred, pts, p_d, cfg3)
+    # the one cell refused is the pair's, far from the track
     assert diag_a.sparse_births == 1 and diag_b.sparse_births == 0
-    assert len(asked) == 1 and np.all(np.abs(asked[0][:, 0] + 3.0) < 0.1)
     assert_same_posterior(a, b)
     # the pair is refused, not lost: without the refusal it is a new object
-    c, _, _ = update_state(pred, pts, p_d, cfg2)
-    assert c.mixture.label.max() > a.mixture.label.max()
+    c, _, _ = run_update(state, pred, pts, p_d, cfg2)
+    assert c.filter.mixture.label.max() > a.filter.mixture.label.max()
 
 
 def test_births_the_scan_shows_sparse_or_around_the_sensor_are_named():
@@ -1098,15 +1129,15 @@ def test_a_refused_pair_is_one_hypothesis_not_two(mode):
         cfg = from_dict({'model': {'mode': mode, 'surveillance_area': 400.0},
                          'partition': {'split_small': split_small}})
         track = evolve(component_at(5.0, 0.0, semi=0.25, p_std=0.05), w=np.array([0.9]))
-        state = evolve(FilterState.initial(cfg), mixture=track, next_label=2)
+        state = TrackerState(evolve(FilterState.initial(cfg), mixture=track, next_label=2))
         # the track's returns in two runs 0.25 m apart: two cells in the finest
         # partition, one in the coarser, so the partitions differ in more than the pair
         legs = np.concatenate([np.linspace(-0.3, -0.1, 5), np.linspace(0.15, 0.35, 5)])
         pts = np.vstack([np.column_stack([np.full(10, 4.9), legs]),
                          [[-3.0, 2.0], [-3.05, 2.0]], [[-1.0, -2.0]]])
-        pred = predict_state(state, 0.1, cfg)
-        return update_state(pred, pts, np.full(len(pred.mixture), 0.9), cfg,
-                            no_birth=lambda b: np.ones(len(b.alpha), dtype=bool))
+        pred = predict_state(state.filter, 0.1, cfg)
+        return run_update(state, pred, pts, np.full(len(pred.mixture), 0.9), cfg,
+                          refuse_births=lambda pairs: np.ones(pairs.n_cells, dtype=bool))
 
     a, _, diag_a = update(2)
     b, _, diag_b = update(0)
@@ -1122,18 +1153,18 @@ def test_partitions_that_repeat_once_lonely_cells_are_returns_are_dropped(monkey
     as is a verbatim repeat); {0,1,2}{3,4} is another and stays. With every code's value
     forced equal (all sums collide) the code-by-code comparison gives the same.
     """
-    from extended_tracker import tracker
+    from extended_tracker.filter import partition
     if collide:
-        monkeypatch.setattr(tracker, '_mix64', lambda x: np.zeros(np.shape(x), np.uint64))
+        monkeypatch.setattr(partition, 'mix64', lambda x: np.zeros(np.shape(x), np.uint64))
     cells = [np.array([0, 1]), np.array([0]), np.array([1]), np.array([2]),
              np.array([0, 1, 2]), np.array([3, 4])]
     size = np.array([len(c) for c in cells])
     lonely = np.array([True, False, False, False, False, False])
     parts = [np.array(p) for p in ([0, 3, 5], [1, 2, 3, 5], [4, 5], [0, 3, 5])]
-    kept = tracker._distinct_with_lonely(parts, cells, size, lonely, 5)
+    kept = partition.distinct_with_lonely(parts, cells, size, lonely, 5)
     assert [p.tolist() for p in kept] == [[0, 3, 5], [4, 5]]
     lonely[:] = False                                   # nothing lonely: only the repeat
-    kept = tracker._distinct_with_lonely(parts, cells, size, lonely, 5)
+    kept = partition.distinct_with_lonely(parts, cells, size, lonely, 5)
     assert [p.tolist() for p in kept] == [[0, 3, 5], [1, 2, 3, 5], [4, 5]]
 
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from extended_tracker.evaluate import SCENARIOS
+from extended_tracker.evaluation.evaluate import SCENARIOS
 from extended_tracker.sim.laser import bounding_gap, crowd_scene, SimObject
 
 
@@ -24,6 +24,7 @@ def test_bounding_gap_of_two_walkers_passing_side_by_side():
     assert bounding_gap(a, late, 5.0) == math.inf
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('name', list(SCENARIOS))
 def test_no_two_objects_of_a_scenario_overlap(name):
     factory, seconds, *_ = SCENARIOS[name]
@@ -36,6 +37,7 @@ def test_no_two_objects_of_a_scenario_overlap(name):
         {k: round(v, 2) for k, v in gaps.items() if v < 0.0}
 
 
+@pytest.mark.slow
 def test_crowd_walkers_are_redrawn_until_nobody_overlaps():
     free = crowd_scene(20, seed=5).objects
     kept = crowd_scene(20, seed=5, seconds=10.0).objects
@@ -51,6 +53,7 @@ def test_crowd_walkers_are_redrawn_until_nobody_overlaps():
     assert kept[0] == free[0]
 
 
+@pytest.mark.slow
 def test_a_crowd_that_cannot_fit_is_refused_not_drawn_forever(monkeypatch):
     import extended_tracker.sim.laser as laser
 
@@ -94,7 +97,7 @@ def test_the_bundled_bag_is_what_its_command_writes(tmp_path):
     if got != want:
         # numpy's sin, cos and arctan2 kernels differ in the last bit between CPUs: on
         # another machine a float32 range may round the other way; nothing more
-        from extended_tracker.bagio import message_typestore, SCAN_TYPE
+        from extended_tracker.bag.bagio import message_typestore, SCAN_TYPE
 
         store = message_typestore()
         for (*_, a), (*_, b) in zip(got, want):

@@ -65,6 +65,7 @@ SHAPES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('ob', SHAPES, ids=['walker', 'bicycle', 'car', 'standing box'])
 def test_every_beam_returns_where_it_first_meets_the_shape(ob):
     scan, truth = first_scan(Scene((ob,), laser=CLEAN))

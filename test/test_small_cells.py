@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.partition import build_partitions
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import filter_step
+from extended_tracker.filter.partition import build_partitions
+from extended_tracker.tracker import filter_step, TrackerState
 
 # a walker's returns (a dozen, 4 cm apart), a tight pair and a tight triple, far apart
 BLOB = np.column_stack([np.full(12, 4.0), np.linspace(-0.22, 0.22, 12)])
@@ -60,8 +59,8 @@ def birth_weight(points, clutter_rate, split_small, area=100.0):
     """Weight of the new object after one PHD update of an empty state with ``points``."""
     cfg = from_dict({'model': {'mode': 'phd', 'clutter_rate': clutter_rate},
                      'partition': {'split_small': split_small}})
-    state, _, _ = filter_step(FilterState.initial(cfg), points, 0.1, cfg, clutter_area=area)
-    return float(state.mixture.w.sum())
+    state, _, _ = filter_step(TrackerState.initial(cfg), points, 0.1, cfg, clutter_area=area)
+    return float(state.filter.mixture.w.sum())
 
 
 def test_a_tight_pair_is_weighed_against_two_clutter_returns():

@@ -1,5 +1,5 @@
 """
-update_state builds the ET-CPHD (and ET-PHD) update's inputs as the model note defines
+The filter update builds the ET-CPHD (and ET-PHD) update's inputs as the model note defines
 them, and reads its posterior back per label.
 
 Oracle: ``cphd_update`` / ``phd_update`` (each checked against enumeration in
@@ -21,19 +21,22 @@ import numpy as np
 import pytest
 
 from extended_tracker.config import from_dict
-from extended_tracker.cphd import cphd_update, phd_update, poisson_log_pmf
-from extended_tracker.ggiw import cell_stats, IW_OFFSET, log_miss_factor, Mixture, update_pairs
-from dataclasses import replace as evolve
-from extended_tracker.state import FilterState
-from extended_tracker.tracker import _birth_prior, sensor_noise, update_state
+from extended_tracker.filter.births import birth_prior
+from extended_tracker.filter.cardinality import poisson_log_pmf
+from extended_tracker.filter.cphd import cphd_update, phd_update
+from extended_tracker.filter.ggiw import cell_stats, log_miss_factor, update_pairs
+from extended_tracker.filter.mixture import IW_OFFSET, Mixture
+from extended_tracker.filter.state import FilterState
+from extended_tracker.filter.update import sensor_noise, SensorTerms
+from extended_tracker.tracker import TrackerState, update_step
 
-from mixtures import reported
+from mixtures import reported, with_fields
 
 AREA = 150.0
 DT = 0.1
 
 
-def scene(mode, dt=DT):
+def scene(mode):
     cfg = from_dict({
         'model': {'mode': mode},
         'partition': {'split_small': 3, 'sub_partition': False,
@@ -52,8 +55,7 @@ def scene(mode, dt=DT):
                   P, v, V, np.array([1, 2, 3]))
     # the predicted cardinality: near the weights' sum and the birth's (not Poisson)
     log_card = -0.5 * (np.arange(cfg.model.n_max + 1) - 2.5) ** 2 / 0.8
-    state = evolve(FilterState.initial(cfg), mixture=mix,
-                   log_card=log_card - np.logaddexp.reduce(log_card), next_label=4, dt=dt)
+    state = TrackerState(FilterState(mix, log_card - np.logaddexp.reduce(log_card), 4))
     points = np.array([[3.05, 0.1], [2.95, 3.12],                   # the lone returns
                        [6.0, 1.96], [6.03, 2.0], [6.0, 2.04]])       # within d_min
     cells = [np.array([0]), np.array([1]), np.arange(2, 5), np.array([2]), np.array([3]),
@@ -61,20 +63,26 @@ def scene(mode, dt=DT):
     return cfg, state, points, cells, [np.arange(3), np.array([0, 1, 3, 4, 5])]
 
 
+def run_update(state, points, p_d, cfg, dt=DT, **sensor):
+    """The update of the scene's prediction ``state.filter`` with ``points``, the given
+    p_D and ``sensor`` terms (``SensorTerms`` fields), births spread over ``AREA``."""
+    return update_step(state, state.filter, points, SensorTerms(p_d, **sensor), cfg, dt, AREA)
+
+
 @pytest.mark.parametrize('mode', ['cphd', 'phd'])
 @pytest.mark.parametrize('dt', [DT, 0.025])                  # 10 Hz, and a 40 Hz scanner
-def test_update_state_builds_the_updates_inputs_as_defined(mode, dt):
-    cfg, state, points, cells, partitions = scene(mode, dt)
-    mix, mc, b = state.mixture, cfg.model, cfg.birth
+def test_the_update_builds_its_inputs_as_defined(mode, dt):
+    cfg, state, points, cells, partitions = scene(mode)
+    mix, mc, b = state.filter.mixture, cfg.model, cfg.birth
     p_d = np.array([0.9, 0.5, 0.7])
-    got, _, diag = update_state(state, points, p_d, cfg, clutter_area=AREA)
+    got, _, diag = run_update(state, points, p_d, cfg, dt)
     assert diag.partitions == 2 and diag.cells == 6
 
     # the oracle's inputs; pairs: each of the first two labels with its own cluster
     st = cell_stats(points, cells)
     R = sensor_noise(cfg)
     pair = update_pairs(mix, np.array([0, 1]), st, np.array([0, 1]), mc.rho, R)
-    births = _birth_prior(st, cfg, AREA)
+    births = birth_prior(st, cfg, AREA)
     born = update_pairs(births, np.arange(6), st, np.arange(6), mc.rho, R)
     log_g = np.full((4, 6), -np.inf)
     log_g[[0, 1], [0, 1]] = np.log(p_d[:2]) + pair.log_lik
@@ -87,9 +95,9 @@ def test_update_state_builds_the_updates_inputs_as_defined(mode, dt):
     log_qd = np.append(log_miss_factor(mix, p_d), birth_qd)
     log_c = -st.n * np.log(AREA)
     if mode == 'cphd':
-        want = cphd_update(log_w, log_qd, log_g, log_c, st.n, partitions, state.log_card,
+        want = cphd_update(log_w, log_qd, log_g, log_c, st.n, partitions, state.filter.log_card,
                            poisson_log_pmf(mc.clutter_rate, len(points) + 1))
-        np.testing.assert_allclose(np.exp(got.log_card), np.exp(want.log_card),
+        np.testing.assert_allclose(np.exp(got.filter.log_card), np.exp(want.log_card),
                                    rtol=1e-9, atol=1e-15)
     else:
         want = phd_update(log_w, log_qd, log_g, log_c, st.n, partitions, mc.clutter_rate,
@@ -97,10 +105,10 @@ def test_update_state_builds_the_updates_inputs_as_defined(mode, dt):
     det = np.exp(want.log_w_detected)
     expected = np.exp(want.log_w_missed[:3]) + det[:3].sum(axis=1)
     # a birth on a cell a label explains with more weight is that object restarted: it
-    # takes the label (tracker._label_births); the others are new labels
+    # takes the label (tracker.label_births); the others are new labels
     claimed = det[:3].max(axis=0) > det[3]
     np.add.at(expected, det[:3].argmax(axis=0)[claimed], det[3][claimed])
-    post = got.mixture
+    post = got.filter.mixture
     for i, label in enumerate([1, 2, 3]):
         assert post.w[post.label == label].sum() == pytest.approx(expected[i], rel=1e-9)
     assert post.w[post.label >= 4].sum() == pytest.approx(det[3][~claimed].sum(), rel=1e-9)
@@ -117,18 +125,18 @@ def test_the_birth_miss_factor_uses_the_birth_gamma_of_mean_expected_rate():
     quadrature over scipy's Gamma."""
     from scipy import integrate, stats
 
-    from extended_tracker.tracker import _birth_log_miss_factor
+    from extended_tracker.filter.births import birth_log_miss_factor
 
     cfg = from_dict({'birth': {'rate_shape': 2.5, 'expected_rate': 8.0},
                      'detection': {'p_d0': 0.9}})
     gamma = stats.gamma(2.5, scale=8.0 / 2.5)
     e0 = integrate.quad(lambda g: np.exp(-g) * gamma.pdf(g), 0, np.inf, epsabs=1e-14)[0]
-    assert _birth_log_miss_factor(cfg) == pytest.approx(np.log(1 - 0.9 * (1 - e0)),
+    assert birth_log_miss_factor(cfg) == pytest.approx(np.log(1 - 0.9 * (1 - e0)),
                                                         rel=1e-10)
 
 
 def test_a_birth_row_is_the_birth_prior_at_the_cell_with_the_uniform_density():
-    """One row per cell, written out from the definition (``_birth_prior``'s notes): at
+    """One row per cell, written out from the definition (``birth_prior``'s notes): at
     the cell's mean, at rest, position variance ``A / (2 pi)`` (a Gaussian whose density at
     its centre is the uniform ``1 / A``), velocity variance ``birth.velocity_std^2``, the
     Gamma and inverse Wishart of the birth prior (extent mean the floor semi-axis
@@ -137,7 +145,7 @@ def test_a_birth_row_is_the_birth_prior_at_the_cell_with_the_uniform_density():
                                'rate_shape': 2.0, 'expected_rate': 8.0}})
     points = np.array([[3.0, 0.0], [3.1, 0.1], [6.0, 2.0]])
     st = cell_stats(points, [np.array([0, 1]), np.array([2])])
-    born = _birth_prior(st, cfg, AREA)
+    born = birth_prior(st, cfg, AREA)
     np.testing.assert_allclose(born.m, [[3.05, 0.05, 0, 0], [6.0, 2.0, 0, 0]], rtol=1e-12)
     P = np.diag([AREA / (2 * np.pi)] * 2 + [1.5 ** 2] * 2)
     np.testing.assert_allclose(born.P, [P, P], rtol=1e-12)
@@ -152,10 +160,8 @@ def test_a_rate_scale_of_zero_counts_as_a_thousandth():
     of its returns, not none: the update stays finite, as at 1e-3."""
     cfg, state, points, _, _ = scene('cphd')
     p_d = np.array([0.9, 0.5, 0.7])
-    zero, _, _ = update_state(state, points, p_d, cfg, rate_scale=np.zeros(3),
-                              clutter_area=AREA)
-    tiny, _, _ = update_state(state, points, p_d, cfg, rate_scale=np.full(3, 1e-3),
-                              clutter_area=AREA)
+    zero = run_update(state, points, p_d, cfg, rate_scale=np.zeros(3))[0].filter
+    tiny = run_update(state, points, p_d, cfg, rate_scale=np.full(3, 1e-3))[0].filter
     assert np.isfinite(zero.mixture.w).all() and np.isfinite(zero.log_card).any()
     np.testing.assert_array_equal(zero.mixture.w, tiny.mixture.w)
     np.testing.assert_array_equal(zero.log_card, tiny.log_card)
@@ -166,17 +172,19 @@ def test_a_labels_visible_fraction_is_its_heaviest_components():
     carries the visible fraction of the heavy one, the part it is reported by, not of
     whichever comes first."""
     cfg, state, points, _, _ = scene('cphd')
-    mix = state.mixture
+    mix = state.filter.mixture
     first = mix.take(np.array([0]))
     light = Mixture(np.array([0.1]), first.alpha, first.beta, first.m + [0.05, 0, 0, 0],
                     first.P, first.v, first.V, first.label)
     labels = np.array([1, 2, 3])
-    state = evolve(state, mixture=Mixture.concat([light, mix]), shown=labels,
-                   shown_pos=mix.m[:, :2].copy(), shown_vel=np.zeros((3, 2)),
-                   shown_elapsed=np.zeros(3))
-    state = reported(state, labels, [9, 9, 9], mix.m[:, :2], size=0.2)   # and confirmed
-    _, est, _ = update_state(state, points, np.array([0.9, 0.9, 0.5, 0.7]), cfg,
-                             clutter_area=AREA, visibility=np.array([0.2, 0.95, 0.5, 0.6]))
+    state = with_fields(state, mixture=Mixture.concat([light, mix]), shown=labels,
+                        shown_pos=mix.m[:, :2].copy(), shown_vel=np.zeros((3, 2)),
+                        shown_elapsed=np.zeros(3))
+    # and confirmed
+    state = TrackerState(state.filter, reported(state.tracks, labels, [9, 9, 9], mix.m[:, :2],
+                                                size=0.2))
+    _, est, _ = run_update(state, points, np.array([0.9, 0.9, 0.5, 0.7]), cfg,
+                           visibility=np.array([0.2, 0.95, 0.5, 0.6]))
     assert est.label.tolist() == [1, 2] and est.visibility.tolist() == [0.95, 0.5]
 
 
@@ -187,8 +195,8 @@ def test_birth_hypotheses_lighter_than_birth_min_weight_are_dropped():
 
     cfg, state, points, _, _ = scene('cphd')
     p_d = np.array([0.9, 0.5, 0.7])
-    got, _, diag = update_state(state, points, p_d, cfg, clutter_area=AREA)
-    assert (got.mixture.label >= 4).any() and diag.births >= 1
+    got, _, diag = run_update(state, points, p_d, cfg)
+    assert (got.filter.mixture.label >= 4).any() and diag.births >= 1
     strict = replace(cfg, birth=replace(cfg.birth, min_weight=1.0))
-    got, _, diag = update_state(state, points, p_d, strict, clutter_area=AREA)
-    assert not (got.mixture.label >= 4).any() and diag.births == 0
+    got, _, diag = run_update(state, points, p_d, strict)
+    assert not (got.filter.mixture.label >= 4).any() and diag.births == 0

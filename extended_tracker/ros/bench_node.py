@@ -21,7 +21,7 @@ def node_overhead(scans: int = 200, marker_listener: bool = False) -> dict:
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import LaserScan
 
-    from ..bagio import scan_data
+    from ..bag.bagio import scan_data
     from ..sim.laser import simulate, tutorial_scene
     from .convert import fill
     from .node import TrackerNode

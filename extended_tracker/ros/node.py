@@ -38,8 +38,8 @@ from .. import stopping
 from ..config import from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig
 from ..configio import double_hint, DOUBLE_LIST_HINT, NODE_NAME
 from ..errors import ConfigError
-from ..messages import markers_data, tracks_data
 from ..pipeline import held, PipelineState, reset, step
+from ..report.messages import markers_data, tracks_data
 from .convert import fill
 from .entry import take_signals
 
@@ -202,10 +202,10 @@ class TrackerNode(Node):
         except Exception as err:           # an exception out of a callback ends spin
             self._count(INTERNAL_ERROR, f'publishing the estimates failed: {err!r}',
                         error=True)
-        self._check_pace(result.stamp_ns, time.perf_counter() - t0)
+        self.check_pace(result.stamp_ns, time.perf_counter() - t0)
         self.pub_diag.publish(self._diagnostics(result))
 
-    def _check_pace(self, stamp_ns: int, took: float) -> None:
+    def check_pace(self, stamp_ns: int, took: float) -> None:
         """Count (and say) FALLING_BEHIND_SCANS scans in a row that took longer than the
         scanner's period, as the stamps give it: the node is not keeping up."""
         last, self._last_stamp_ns = self._last_stamp_ns, stamp_ns
@@ -343,11 +343,11 @@ def main(args=None, stop: threading.Event | None = None) -> None:
         if node is not None:
             node.get_logger().info(node.summary())
             node.destroy_node()
-        _shutdown()
+        shutdown_context()
         stopping.give_back(previous)
 
 
-def _shutdown() -> None:
+def shutdown_context() -> None:
     """
     Shut the context down unless something else already has. ``try_shutdown`` checks
     and then shuts down; a shutdown from another thread between the two (as rclpy's own

@@ -34,7 +34,7 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
-from ..bagio import scan_data
+from ..bag.bagio import scan_data
 from .convert import fill
 from .node import TrackerNode
 

@@ -144,7 +144,7 @@ def _padded(a, fill, wrap=False):
     return np.concatenate([pad, a, pad])
 
 
-def _reach(angle_step, margin):
+def reach_of(angle_step, margin):
     """Per offset: the range up to which that many beams ``angle_step`` apart are within
     ``margin`` across (0 for all of them in a scan of one beam, step 0: no neighbours)."""
     if angle_step <= 0:
@@ -156,7 +156,7 @@ def _neighbour_returned(c, r, learn, idle, reach, margin, wrap=False):
     """
     The ``idle`` beams (bool) whose candidate range ``c`` a neighbouring beam returned this
     scan (a ``learn`` return within ``margin`` of it); a beam's neighbours are the beams
-    within ``margin`` across at its candidate's range (``reach``, :func:`_reach`), at
+    within ``margin`` across at its candidate's range (``reach``, :func:`reach_of`), at
     most :data:`NEIGHBOUR_BEAMS` either side.
     """
     hit = np.zeros(len(c), dtype=bool)
@@ -183,11 +183,11 @@ def _alone(r, which, reach, margin, wrap=False):
     return (rs[:, 0] <= reach[NEIGHBOUR_BEAMS + 1]) & ~np.any(near, axis=1)
 
 
-def _continues(r, b, which, reach, margin, wrap=False):
+def continues_surface(r, b, which, reach, margin, wrap=False):
     """
     Which of the ``which`` beams (bool) return a range within ``margin`` of a neighbouring
     beam's background ``b`` (NaN: none), the neighbours within ``margin`` across at that
-    range (``reach``, :func:`_reach`); a beam so found serves as a neighbour in turn, so a
+    range (``reach``, :func:`reach_of`); a beam so found serves as a neighbour in turn, so a
     stretch of such beams is found from its end next to the known background.
 
     Notes
@@ -256,80 +256,120 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
     """
     if state is None or not state.matches(scan):
         state = BackgroundState.for_scan(scan)
-    b = state.background.copy()
-    s2 = state.second.copy()
-    c, age = state.candidate.copy(), state.candidate_age.copy()
-    c2, age2 = state.candidate2.copy(), state.candidate2_age.copy()
     r = scan.ranges                                   # inf where no return
-    margin = cfg.margin
-    known = np.isfinite(b)
     with np.errstate(invalid='ignore'):
-        seen = np.isfinite(r)
-        on_b = known & seen & (np.abs(r - b) <= margin)
-        on_s2 = seen & ~on_b & (np.abs(r - s2) <= margin)         # NaN: never
-        is_bg = on_b | on_s2
-        # refine the background where it is seen (exponential smoothing, time constant)
-        gain = min(1.0, dt / cfg.learn_time)
-        b = np.where(on_b, b + gain * (r - b), b)
-        s2 = np.where(on_s2, s2 + gain * (r - s2), s2)
-        b_ago = np.where(on_b, 0.0, state.background_ago + dt)
-        s2_ago = np.where(on_s2, 0.0, state.second_ago + dt)
-        # free: a beam of unknown background that returned nothing for confirm_time in a
-        # row; a later return does not undo it (a person standing there)
-        empty = np.where(seen | known, 0.0, state.empty_age + dt)
-        free = state.free | (empty >= cfg.confirm_time - 1e-6)
-        learn = seen & ~is_bg & ~(protected & (known | free))
-        # candidates: the beam's two latest ranges, each ageing by a scan period whenever
-        # it is returned (or a neighbour returns it, below); the one returned this scan
-        # is put first, a new range pushes the first to second place
-        on_c = np.abs(r - c) <= margin
-        on_c2 = learn & ~on_c & (np.abs(r - c2) <= margin)
-        c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
-        age, age2 = np.where(on_c2, age2, age), np.where(on_c2, age, age2)
-        same = learn & (on_c | on_c2)
-        fresh = learn & ~same
-        c2, age2 = np.where(fresh, c, c2), np.where(fresh, age, age2)
-        # ages count scans' dt with a little slack so that k scans of dt reach k * dt
-        age = np.where(same, age + dt, np.where(fresh, 0.0, age))
-        c = np.where(same, c + gain * (r - c), np.where(fresh, r, c))
-        # a beam that returned nothing or its background ages its candidate when a
-        # neighbour returned that range: a surface at the edge of range, or behind a gap,
-        # sparkles over the beams
-        reach = _reach(scan.angle_step, margin)
-        wrap = scan.full_turn                         # the first beam next to the last
-        age = np.where(_neighbour_returned(c, r, learn, ~seen | is_bg, reach, margin, wrap),
-                       age + dt, age)
-        farther = ~known | (c > b + margin)
-        nearer = known & (c < b - margin)
-        ripe = age >= cfg.confirm_time - 1e-6
-        # the background returned within confirm_time: the beam flips between it and the
-        # candidate (an object's edge, a thin post), so the candidate is a second range
-        lately = known & (b_ago <= cfg.confirm_time)
-        # nearer: after forget_time, or once ripe for a return thinner than the beam
-        # spacing (no person; a mixed return at an edge, a thin pole)
-        long = age >= cfg.forget_time - 1e-6
-        thin = learn & nearer & ripe & ~lately & ~long
-        if np.any(thin):
-            which = thin.nonzero()[0]
-            thin[which] = _alone(r, which, reach, margin, wrap)
-        # a beam hidden before it was learned (no background, never seen free) that returns
-        # the range of a neighbour's background continues that surface: a stretch of wall
-        # revealed by someone walking away is learned at once, not tracked for the
-        # confirm_time it would take to ripen (promoted ripe or not; with no background
-        # it is farther, and never flips with one)
-        hidden = learn & ~known & ~free
-        if tracked is not None:
-            hidden &= ~tracked
-        if np.any(hidden):
-            hidden = _continues(r, b, hidden, reach, margin, wrap)
-        promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
-        second = learn & ripe & lately & ~promote
-        b = np.where(promote, c, b)
-        b_ago = np.where(promote, 0.0, b_ago)
-        s2 = np.where(second, c, np.where(s2_ago > cfg.forget_time, np.nan, s2))
-        s2_ago = np.where(second, 0.0, s2_ago)
+        seen = _refine_known(state, r, dt, cfg)
+        learn = seen.returned & ~seen.is_bg & ~(protected & (seen.known | seen.free))
+        c, c2, age, age2 = _candidates(state, scan, dt, cfg, learn, seen)
+        promote, second = _promotions(scan, cfg, learn, seen, c, age, tracked)
+        b = np.where(promote, c, seen.b)
+        b_ago = np.where(promote, 0.0, seen.b_ago)
+        s2 = np.where(second, c, np.where(seen.s2_ago > cfg.forget_time, np.nan, seen.s2))
+        s2_ago = np.where(second, 0.0, seen.s2_ago)
         learned = promote | second
         age = np.where(learned, 0.0, age)
-    keep = ~(is_bg | learned)[scan.beam]
-    return BackgroundState(state.angles, b, c, age, empty, free, learned, b_ago, s2, s2_ago,
-                           c2, age2), keep
+    keep = ~(seen.is_bg | learned)[scan.beam]
+    return BackgroundState(state.angles, b, c, age, seen.empty, seen.free, learned, b_ago, s2,
+                           s2_ago, c2, age2), keep
+
+
+@dataclass(frozen=True)
+class _Seen:
+    """What one scan says of the known ranges, beam by beam (see :func:`_refine_known`)."""
+
+    b: np.ndarray
+    s2: np.ndarray
+    b_ago: np.ndarray
+    s2_ago: np.ndarray
+    known: np.ndarray
+    returned: np.ndarray
+    is_bg: np.ndarray
+    empty: np.ndarray
+    free: np.ndarray
+    gain: float
+
+
+def _refine_known(state: BackgroundState, r: np.ndarray, dt: float, cfg) -> _Seen:
+    """
+    Match the returns ``r`` with the background and second ranges, refine those seen
+    (exponential smoothing with time constant ``learn_time``), and age the beams that
+    return nothing: a beam of unknown background that returned nothing for
+    ``confirm_time`` in a row is free, and a later return does not undo it (a person
+    standing there).
+    """
+    b, s2, margin = state.background, state.second, cfg.margin
+    known = np.isfinite(b)
+    seen = np.isfinite(r)
+    on_b = known & seen & (np.abs(r - b) <= margin)
+    on_s2 = seen & ~on_b & (np.abs(r - s2) <= margin)         # NaN: never
+    gain = min(1.0, dt / cfg.learn_time)
+    empty = np.where(seen | known, 0.0, state.empty_age + dt)
+    return _Seen(b=np.where(on_b, b + gain * (r - b), b),
+                 s2=np.where(on_s2, s2 + gain * (r - s2), s2),
+                 b_ago=np.where(on_b, 0.0, state.background_ago + dt),
+                 s2_ago=np.where(on_s2, 0.0, state.second_ago + dt),
+                 known=known, returned=seen, is_bg=on_b | on_s2, empty=empty,
+                 free=state.free | (empty >= cfg.confirm_time - 1e-6), gain=gain)
+
+
+def _candidates(state: BackgroundState, scan: ScanPoints, dt: float, cfg, learn, seen: _Seen):
+    """
+    The beam's two latest ranges, each ageing by a scan period whenever it is returned
+    (or a neighbour returns it); the one returned this scan is put first, a new range
+    pushes the first to second place. Returns ``(c, c2, age, age2)``.
+    """
+    r, margin = scan.ranges, cfg.margin
+    c, age = state.candidate, state.candidate_age
+    c2, age2 = state.candidate2, state.candidate2_age
+    on_c = np.abs(r - c) <= margin
+    on_c2 = learn & ~on_c & (np.abs(r - c2) <= margin)
+    c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
+    age, age2 = np.where(on_c2, age2, age), np.where(on_c2, age, age2)
+    same = learn & (on_c | on_c2)
+    fresh = learn & ~same
+    c2, age2 = np.where(fresh, c, c2), np.where(fresh, age, age2)
+    # ages count scans' dt with a little slack so that k scans of dt reach k * dt
+    age = np.where(same, age + dt, np.where(fresh, 0.0, age))
+    c = np.where(same, c + seen.gain * (r - c), np.where(fresh, r, c))
+    # a beam that returned nothing or its background ages its candidate when a
+    # neighbour returned that range: a surface at the edge of range, or behind a gap,
+    # sparkles over the beams
+    reach = reach_of(scan.angle_step, margin)
+    idle = ~seen.returned | seen.is_bg
+    age = np.where(_neighbour_returned(c, r, learn, idle, reach, margin, scan.full_turn),
+                   age + dt, age)
+    return c, c2, age, age2
+
+
+def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked):
+    """
+    Which candidates become the background, and which the second range.
+
+    Farther than the background: once ripe (``confirm_time``). Nearer: after
+    ``forget_time``, or once ripe for a return thinner than the beam spacing (no person;
+    a mixed return at an edge, a thin pole). A background returned within
+    ``confirm_time`` means the beam flips between it and the candidate (an object's edge,
+    a thin post): the candidate is a second range. A beam hidden before it was learned
+    (no background, never seen free) that returns the range of a neighbour's background
+    continues that surface and is learned at once (not near a track).
+    """
+    r, b, margin = scan.ranges, seen.b, cfg.margin
+    reach = reach_of(scan.angle_step, margin)
+    wrap = scan.full_turn                             # the first beam next to the last
+    farther = ~seen.known | (c > b + margin)
+    nearer = seen.known & (c < b - margin)
+    ripe = age >= cfg.confirm_time - 1e-6
+    lately = seen.known & (seen.b_ago <= cfg.confirm_time)
+    long = age >= cfg.forget_time - 1e-6
+    thin = learn & nearer & ripe & ~lately & ~long
+    if np.any(thin):
+        which = thin.nonzero()[0]
+        thin[which] = _alone(r, which, reach, margin, wrap)
+    hidden = learn & ~seen.known & ~seen.free
+    if tracked is not None:
+        hidden &= ~tracked
+    if np.any(hidden):
+        hidden = continues_surface(r, b, hidden, reach, margin, wrap)
+    promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
+    second = learn & ripe & lately & ~promote
+    return promote, second

@@ -146,7 +146,7 @@ class ScanPoints:
         """
         order = self.angles.argsort(kind='stable')
         ang = self.angles[order]
-        return order, ang, _median(ang[1:] - ang[:-1]) if len(ang) > 1 else 0.0
+        return order, ang, median_of(ang[1:] - ang[:-1]) if len(ang) > 1 else 0.0
 
     @cached_property
     def sorted_ranges(self) -> np.ndarray:
@@ -187,7 +187,7 @@ class ScanPoints:
         return bearing + (2 * math.pi) * np.round(x)
 
 
-def _median(x: np.ndarray) -> float:
+def median_of(x: np.ndarray) -> float:
     """``np.median`` of a 1-D array (the same value) without its dispatch: the mean of the
     middle one or two order statistics."""
     k = len(x)
@@ -235,6 +235,31 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
     points: the caller runs a predict-only step.
 
     """
+    a0, inc, r_lo, r_hi, ranges = _checked_fields(scan)
+    n = len(ranges)
+    if min_range > 0:
+        r_lo = max(r_lo, min_range)
+    if max_range > 0:
+        r_hi = min(r_hi, max_range)
+    angles = a0 + inc * np.arange(n)
+    valid, masked = _classify_beams(ranges, r_lo, r_hi, range_max_inclusive)
+    beam = valid.nonzero()[0]
+    r = ranges[beam]
+    th = angles[beam]
+    points = np.empty((len(beam), 2))
+    np.multiply(r, np.cos(th), out=points[:, 0])
+    np.multiply(r, np.sin(th), out=points[:, 1])
+    clean = np.where(valid, ranges, np.inf)
+    if n:
+        lo, hi = float(min(angles[0], angles[-1])), float(max(angles[0], angles[-1]))
+    else:
+        lo = hi = a0
+    return ScanPoints(points, beam, angles, clean, valid, masked, lo, hi, r_hi)
+
+
+def _checked_fields(scan):
+    """``(angle_min, angle_increment, range_min, range_max, ranges)`` of a scan, checked
+    (see :func:`scan_to_points` for what raises)."""
     a0 = _finite('angle_min', scan.angle_min)
     inc = _finite('angle_increment', scan.angle_increment)
     r_lo = _finite('range_min', scan.range_min)
@@ -265,15 +290,15 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
             raise ScanError(f'len(ranges) = {n} disagrees with angle_min={a0:.6g}, '
                             f'angle_max={a1:.6g}, angle_increment={inc:.6g} '
                             f'(expected {expected:.1f} beams)')
-    if min_range > 0:
-        r_lo = max(r_lo, min_range)
-    if max_range > 0:
-        r_hi = min(r_hi, max_range)
-    angles = a0 + inc * np.arange(n)
+    return a0, inc, r_lo, r_hi, ranges
+
+
+def _classify_beams(ranges: np.ndarray, r_lo: float, r_hi: float, range_max_inclusive: bool):
+    """The valid beams (a mask) and the count of each invalid kind, each beam counted
+    under one kind."""
     finite = np.isfinite(ranges)
     is_nan = np.isnan(ranges)
-    inf = finite | is_nan
-    np.logical_not(inf, out=inf)
+    inf = ~(finite | is_nan)
     neg_inf = inf & np.signbit(ranges)
     pos_inf = inf ^ neg_inf
     # comparisons on the finite ranges only: a NaN compared raises the invalid flag
@@ -289,15 +314,4 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
               'neg_inf': int(np.count_nonzero(neg_inf)),
               'below_min': int(np.count_nonzero(below)),
               'above_max': int(np.count_nonzero(above))}
-    beam = valid.nonzero()[0]
-    r = ranges[beam]
-    th = angles[beam]
-    points = np.empty((len(beam), 2))
-    np.multiply(r, np.cos(th), out=points[:, 0])
-    np.multiply(r, np.sin(th), out=points[:, 1])
-    clean = np.where(valid, ranges, np.inf)
-    if n:
-        lo, hi = float(min(angles[0], angles[-1])), float(max(angles[0], angles[-1]))
-    else:
-        lo = hi = a0
-    return ScanPoints(points, beam, angles, clean, valid, masked, lo, hi, r_hi)
+    return valid, masked

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import stopping
-from ..bagio import build_message, message_typestore, SCAN_TYPE, scan_data, staged_bag
-from ..errors import BagError
 from . import laser
+from .. import stopping
+from ..bag.bagio import build_message, message_typestore, scan_data, SCAN_TYPE, staged_bag
+from ..errors import BagError
 
 SCENE_OF = {
     'tutorial': laser.tutorial_scene,

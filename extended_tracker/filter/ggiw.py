@@ -2,7 +2,7 @@
 Gamma Gaussian inverse Wishart (GGIW) components: prediction and single-cell update.
 
 A mixture is a struct of arrays with a leading component axis. Conventions follow
-``docs/ggiw-cphd.md`` (Koch's inverse Wishart, ``d = 2``, ``E[X] = V / (v - 2d - 2)``).
+``doc/model.md`` (Koch's inverse Wishart, ``d = 2``, ``E[X] = V / (v - 2d - 2)``).
 
 Notes
 -----
@@ -14,270 +14,22 @@ likelihood contains the Gamma-Poisson term ``E[exp(-gamma) gamma^n]``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
-from functools import cached_property
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import gammaln
 
-from .tables import cached_tables, read_only
-
-
-D = 2                     # extent dimension
-IW_OFFSET = 2 * D + 2     # E[X] = V / (v - IW_OFFSET); v must exceed it
-
-
-
-@dataclass(frozen=True)
-class Mixture:
-    """
-    A GGIW mixture with a leading component axis of length ``n``.
-
-    Attributes
-    ----------
-    w : (n,) array
-        Weights (expected number of objects each component stands for).
-    alpha, beta : (n,) arrays
-        Gamma shape and rate of the measurement rate; ``E[gamma] = alpha / beta``.
-    m : (n, 4) array
-        Kinematic mean ``[px, py, vx, vy]`` (m, m/s).
-    P : (n, 4, 4) array
-        Kinematic covariance.
-    v : (n,) array
-        Inverse Wishart degrees of freedom, ``v > 6``.
-    V : (n, 2, 2) array
-        Inverse Wishart scale (m^2).
-    label : (n,) int64 array
-        Track label carried from birth through updates.
-
-    """
-
-    w: np.ndarray
-    alpha: np.ndarray
-    beta: np.ndarray
-    m: np.ndarray
-    P: np.ndarray
-    v: np.ndarray
-    V: np.ndarray
-    label: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.w)
-
-    def take(self, idx) -> 'Mixture':
-        """Return the components at ``idx`` (index array or boolean mask)."""
-        return Mixture(self.w[idx], self.alpha[idx], self.beta[idx], self.m[idx],
-                       self.P[idx], self.v[idx], self.V[idx], self.label[idx])
-
-    def with_weights(self, w) -> 'Mixture':
-        """Return a copy with new weights."""
-        return replace(self, w=np.asarray(w, dtype=float))
-
-    @staticmethod
-    def empty() -> 'Mixture':
-        """Return a mixture with no components."""
-        return Mixture(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 4)),
-                       np.zeros((0, 4, 4)), np.zeros(0), np.zeros((0, D, D)),
-                       np.zeros(0, dtype=np.int64))
-
-    @staticmethod
-    def concat(parts) -> 'Mixture':
-        """Concatenate mixtures along the component axis."""
-        parts = [p for p in parts if len(p)]
-        if not parts:
-            return Mixture.empty()
-        if len(parts) == 1:
-            return parts[0]
-        cat = np.concatenate
-        return Mixture(cat([p.w for p in parts]), cat([p.alpha for p in parts]),
-                       cat([p.beta for p in parts]), cat([p.m for p in parts]),
-                       cat([p.P for p in parts]), cat([p.v for p in parts]),
-                       cat([p.V for p in parts]), cat([p.label for p in parts]))
-
-    def expected_extent(self, idx=None) -> np.ndarray:
-        """Return ``E[X] = V / (v - 6)``, shape (n, 2, 2), or of the components ``idx``."""
-        return self._extent if idx is None else self._extent[idx]
-
-    @cached_property
-    def _extent(self):
-        # gating, the p_D model and the plausibility check all ask for it: computed once,
-        # shared, so read-only
-        return read_only(self.V / (self.v - IW_OFFSET)[:, None, None])[0]
-
-    def expected_rate(self) -> np.ndarray:
-        """Return ``E[gamma] = alpha / beta``, shape (n,)."""
-        return self.alpha / self.beta
-
-    def by_label(self):
-        """
-        Components grouped by label, each label's heaviest first.
-
-        Returns
-        -------
-        order : (n,) int array
-            Component indices, labels ascending, weights descending within a label (ties,
-            to float32's precision, by index: :func:`weight_key`).
-        is_head : (n,) bool array
-            Over ``order``: the first (heaviest) component of its label.
-        group : (n,) int array
-            Over ``order``: the label's rank among the labels.
-
-        Computed once per mixture; the arrays are shared, so they are read-only.
-        A step asks for it up to five times, often of the same mixture when fusion and
-        splitting change nothing.
-        """
-        return self._by_label
-
-    def per_label(self):
-        """
-        ``(labels, rank, weight)``: the labels ascending, each component's index into
-        them, and each label's total weight (summed in component order). Computed once
-        per mixture, like :meth:`by_label`.
-        """
-        return self._per_label
-
-    @cached_property
-    def _per_label(self):
-        order, is_head, group = self.by_label()
-        rank = np.empty(len(order), dtype=np.int64)
-        rank[order] = group
-        return read_only(self.label[order[is_head]], rank, np.bincount(rank, weights=self.w))
-
-    @cached_property
-    def _by_label(self):
-        order = self.label.argsort(kind='stable')
-        lab = self.label[order]
-        if np.all(lab[1:] != lab[:-1]):
-            # one component a label (a predicted or reduced mixture, most scans): each is
-            # its label's head, and the weights order nothing
-            n = len(order)
-            return read_only(order, np.ones(n, dtype=bool), np.arange(n))
-        order, is_head = group_heads(self.label, -weight_key(self.w))
-        return read_only(order, is_head, is_head.cumsum() - 1)
-
-
-def group_heads(group: np.ndarray, key: np.ndarray):
-    """
-    ``(order, is_head)``: indices sorted by ``group`` ascending, then by ``key`` ascending
-    (ties by index), and over that order whether each is the first of its group (with
-    ``key = -weight_key(w)``, its heaviest).
-    """
-    order = np.lexsort((key, group))
-    g = group[order]
-    is_head = np.empty(len(order), dtype=bool)
-    is_head[:1] = True
-    np.not_equal(g[1:], g[:-1], out=is_head[1:])
-    return order, is_head
-
-
-def weight_key(w) -> np.ndarray:
-    """
-    Weights as keys for ordering: rounded to float32, so that weights equal but for their
-    last bits tie, and the stable sorts order them by index, on every CPU.
-
-    Such ties are structural: the CPHD update gives each cell that one component alone
-    explains the weight of its partition, every cell through roundings of its own, and
-    numpy's float64 ``exp`` and ``log`` differ in the last bit between CPUs. Which of two
-    tied components heads a label (is reported, absorbs the other, keeps the label) must
-    not rest on those bits.
-    """
-    return np.asarray(w, dtype=np.float32)
-
-
-# --- closed-form 2x2 symmetric positive definite helpers (batched over leading axes) ---
-
-def det2(A):
-    """Determinant of (..., 2, 2) matrices."""
-    return A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-
-
-def inv2(A):
-    """Inverse of (..., 2, 2) matrices."""
-    out = np.empty_like(A)
-    a, b, c, d = A[..., 0, 0], A[..., 0, 1], A[..., 1, 0], A[..., 1, 1]
-    det = a * d - b * c                # det2 inlined: inv2 runs about ten times a scan
-    # the adjugate, then one division by det: d / det, a / det, -b / det, -c / det
-    out[..., 0, 0] = d
-    out[..., 1, 1] = a
-    np.negative(b, out=out[..., 0, 1])
-    np.negative(c, out=out[..., 1, 0])
-    out /= det[..., None, None]
-    return out
-
-
-def eig2(A):
-    """
-    Eigenvalues ``(largest, smallest)`` of symmetric (..., 2, 2) matrices, closed form:
-    ``tr/2 +- sqrt((a - c)^2 / 4 + b^2)``.
-    """
-    a, b, c = A[..., 0, 0], A[..., 0, 1], A[..., 1, 1]
-    half_tr = 0.5 * (a + c)
-    d = a - c                                  # squared as d * d: d ** 2's values, no
-    root = np.sqrt(0.25 * (d * d) + b * b)  # Python operand; a sum of squares, >= 0
-    return half_tr + root, half_tr - root
-
-
-def logdet_spd2(A):
-    """
-    Log-determinant of SPD (..., 2, 2) matrices through their Cholesky factor.
-
-    ``log|A| = 2 log L00 + 2 log L11`` with ``L00 = sqrt(a)``, ``L11^2 = c - b^2 / a``: no
-    cancellation beyond that of the Schur complement itself.
-    """
-    a = A[..., 0, 0]
-    b = 0.5 * (A[..., 0, 1] + A[..., 1, 0])
-    schur = A[..., 1, 1] - b * b / a
-    return np.log(a) + np.log(schur)
-
-
-def sqrtm_spd2(A):
-    """
-    Symmetric square root of SPD (..., 2, 2) matrices.
-
-    Notes
-    -----
-    For 2x2 SPD ``A``: ``sqrt(A) = (A + s I) / t`` with ``s = sqrt(det A)`` and
-    ``t = sqrt(tr A + 2 s)`` (Cayley-Hamilton). Symmetric roots keep the update rotation
-    equivariant, which Cholesky roots do not.
-
-    """
-    s = np.sqrt(det2(A))
-    t = np.sqrt(A[..., 0, 0] + A[..., 1, 1] + 2.0 * s)
-    out = A.copy()
-    out[..., 0, 0] += s
-    out[..., 1, 1] += s
-    return out / t[..., None, None]
-
-
-def quad_form2(e, A):
-    """
-    ``e^T A e`` of (..., 2) vectors and symmetric (..., 2, 2) matrices, broadcast against
-    each other, in closed form (the off-diagonal read once and doubled).
-    """
-    return quad_form2_xy(e[..., 0], e[..., 1], A[..., 0, 0], A[..., 0, 1], A[..., 1, 1])
-
-
-def quad_form2_xy(x, y, a, b, c):
-    """
-    ``[x y] [[a b] [b c]] [x y]^T`` from the coordinates and the matrix entries, broadcast
-    against each other: :func:`quad_form2` on arrays the caller lays out (contiguous
-    coordinate arrays broadcast faster than views of stacked vectors and matrices).
-    """
-    return a * (x * x) + 2.0 * b * x * y + c * (y * y)
-
-
-def symmetrize(A):
-    """Return ``(A + A^T) / 2`` over the last two axes."""
-    return 0.5 * (A + A.swapaxes(-1, -2))
-
+from .algebra2 import inv2, logdet_spd2, quad_form2_xy, sqrtm_spd2, symmetrize
+from .mixture import D, IW_OFFSET, Mixture
+from .tables import cached_tables
 
 # log Gamma_2 (scipy.special.multigammaln(a, 2), which the reference test evaluates) is
 # written out in update_pairs
 _HALF_LOG_PI = 0.5 * np.log(np.pi)
+
+
 _LOG_PI = 2.0 * _HALF_LOG_PI
 
-
-# --- prediction (section 2) ---
 
 @cached_tables(maxsize=256)        # scan periods jitter in recordings
 def cv_matrices(dt: float, sigma_accel: float):
@@ -293,7 +45,7 @@ def cv_matrices(dt: float, sigma_accel: float):
     ``sigma_a`` 2 gives 0.4 m^2/s^3 at 10 Hz and 0.09 at 45 Hz, so a track coasts with a
     spread that depends on the scanner's rate (the forgetting does not: trap 3). The
     continuous form, ``q [[dt^3/3, dt^2/2], [dt^2/2, dt]]`` per axis, is the same at every
-    rate; measured with q 0.1 (``doc/history.md``) it kept more of ``crowd20``'s hidden
+    rate; measured with q 0.1 it kept more of ``crowd20``'s hidden
     walkers but on positive_1 held a 3.5 m/s track behind the background for 22 scans,
     and it is not in.
 
@@ -362,8 +114,6 @@ def predict(mix: Mixture, dt: float, p_survival: float, sigma_accel: float, tau_
     V_new = mix.V * ((v_new - IW_OFFSET) / s)[:, None, None]
     return Mixture(mix.w * p_survival ** dt, alpha, beta, m, P, v_new, V_new, mix.label)
 
-
-# --- update with one cell (section 3), batched over (component, cell) pairs ---
 
 @dataclass(frozen=True)
 class CellStats:
@@ -536,6 +286,12 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     V_new = symmetrize(V + N_hat + Z_hat)
 
     beta_eff = beta if rate_scale is None else beta / f      # f = 1: beta as it is
+    log_lik = _pair_log_likelihood(n, alpha, beta_eff, v, V, v_new, V_new, X, Y, S)
+    return PairUpdate(log_lik, alpha + n, beta + f, m_new, P_new, v_new, V_new)
+
+
+def _pair_log_likelihood(n, alpha, beta_eff, v, V, v_new, V_new, X, Y, S):
+    """``log l_W`` of section 3 of ``doc/model.md``, term by term, for each pair."""
     alpha_new = alpha + n
     logdet_V, logdet_Vn = logdet_spd2(V), logdet_spd2(V_new)
     logdet_X, logdet_Y, logdet_S = logdet_spd2(X), logdet_spd2(Y), logdet_spd2(S)
@@ -543,10 +299,9 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     # log Gamma_2(a) = (1/2) log pi + log Gamma(a) + log Gamma(a - 1/2)
     lg2_new = _HALF_LOG_PI + gammaln(h1) + gammaln(h1 - 0.5)
     lg2_old = _HALF_LOG_PI + gammaln(h0) + gammaln(h0 - 0.5)
-    lg_new, lg_old = gammaln(alpha_new), gammaln(alpha)
-    log_lik = (
+    return (
         # Gamma-Poisson: E[e^{-gamma} gamma^n] under Gam(alpha, beta_eff)
-        lg_new - lg_old + alpha * np.log(beta_eff)
+        gammaln(alpha_new) - gammaln(alpha) + alpha * np.log(beta_eff)
         - alpha_new * np.log(beta_eff + 1.0)
         # Gaussian normalisation of n points and of the centroid
         - n * _LOG_PI - np.log(n)                                   # d = 2
@@ -556,7 +311,6 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
         # centroid innovation and spread scaling
         + 0.5 * logdet_X - 0.5 * logdet_S + 0.5 * (n - 1.0) * (logdet_X - logdet_Y)
     )
-    return PairUpdate(log_lik, alpha_new, beta + f, m_new, P_new, v_new, V_new)
 
 
 def gate_covariance(mix: Mixture, rho: float, R: np.ndarray) -> np.ndarray:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+NEG_INF = -np.inf
+
 
 def logsumexp(a, axis=None):
     """

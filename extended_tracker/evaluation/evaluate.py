@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import stopping
-from .config import from_dict
-from .errors import BagError, ExtendedTrackerError
+from .. import stopping
+from ..config import from_dict
+from ..errors import BagError, ExtendedTrackerError
+from ..pipeline import PipelineState, step
+from ..sim import laser
 from .metrics import score_sequence
-from .pipeline import PipelineState, step
-from .sim import laser
 
 GOSPA_C = 2.0          # m, cut-off
 GOSPA_P = 2.0
@@ -54,7 +54,7 @@ VARIANTS = {
 }
 
 
-def _merge(a: dict, b: dict) -> dict:
+def merge_overrides(a: dict, b: dict) -> dict:
     out = {k: dict(v) for k, v in a.items()}
     for k, v in b.items():
         out.setdefault(k, {}).update(v)
@@ -125,7 +125,7 @@ def run_scenario(name: str, variant: dict):
     little past the range it left by).
     """
     factory, seconds, seed, overrides, _ = SCENARIOS[name]
-    cfg = from_dict(_merge(_merge(SUITE_CONFIG, overrides), variant))
+    cfg = from_dict(merge_overrides(merge_overrides(SUITE_CONFIG, overrides), variant))
     state = PipelineState.initial(cfg)
     truth_seq, est_seq, hidden_seq = [], [], []
     for scan, objs in laser.simulate(factory(), seconds, seed=seed):
@@ -173,15 +173,11 @@ def write_readme_results(readme: Path) -> None:
         raise ExtendedTrackerError(f'cannot read {readme}: {err}') from err
     if begin not in text or end not in text:
         raise ExtendedTrackerError(f'{readme} has no {begin} ... {end} section')
-    body = (f'{begin}\nGOSPA: alpha = 2, c = {GOSPA_C:g} m, p = {GOSPA_P:g}, '
-            'Gaussian-Wasserstein base distance between ellipses; missed and false are the '
-            'GOSPA parts (c^p/2 per object, mean per scan); card. error is the mean '
-            '|estimated - true| count per scan; hidden kept is k / n: of the n object-scans '
-            'where no beam reached the object (others hid it), the k where an estimate was '
-            'assigned to it. Scored over the region the scanner covers '
-            '(its sector, out to its range): the truth is every object whose centre lies '
-            'there, hidden ones included, and estimates outside it are not scored. The '
-            'filter takes clutter as falling on random beams at uniform ranges '
+    body = (f'{begin}\nMean GOSPA (c = {GOSPA_C:g} m, p = {GOSPA_P:g}, alpha = 2, '
+            'Gaussian-Wasserstein distance between ellipses) with its missed and false parts, '
+            'the mean |estimated - true| count (card. error), and hidden kept k / n: of the n '
+            'object-scans no beam reached, the k that kept an estimate. Scored over the '
+            'scanner\'s sector and range. Clutter falls on random beams '
             '(`model.clutter_density: beam`), as the simulated laser makes it.\n\n'
             f'{scenario_notes()}\n\n{results_table()}\n{end}')
     head, rest = text.split(begin, 1)
@@ -198,22 +194,11 @@ def evaluate_bag(output_bag, truth_path, plot=None):
     """
     from rosbags.rosbag2 import Reader
 
-    from .bagio import message_typestore
+    from ..bag.bagio import message_typestore
 
-    try:
-        truth = json.loads(Path(truth_path).read_text())
-        by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
-        view = truth.get('info', {}).get('view')
-        digest = truth.get('info', {}).get('scan_digest')
-        # which objects were hidden is known when every object says how many beams
-        # reached it (an older truth file says it of none)
-        beams_known = all('visible_beams' in o for objs in by_stamp.values() for o in objs)
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
-        msg = (f'cannot read the truth {truth_path} (a truth.json written by '
-               f'extended-tracker simulate): {err!r}')
-        raise BagError(msg) from err
+    by_stamp, view, digest, beams_known = _read_truth(truth_path)
     if plot:
-        from .imagefile import image_path
+        from ..report.imagefile import image_path
 
         plot = image_path(plot)
     store = message_typestore()
@@ -234,23 +219,13 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
             if ns not in by_stamp:
                 continue
-            objs = by_stamp[ns]
-            objs = [o for o, k in zip(objs, in_view([o['centre'] for o in objs], view)) if k]
-            est = msg.objects
-            est_m = np.array([[o.position.x, o.position.y] for o in est]).reshape(-1, 2)
-            est = [o for o, k in zip(est, in_view(est_m, view)) if k]
+            objs, truth, est = _scan_sets(by_stamp[ns], msg.objects, view)
             if beams_known:
                 hidden_seq.append(np.array([o['visible_beams'] == 0 for o in objs], dtype=bool))
-            truth_seq.append(([o['id'] for o in objs],
-                              np.array([o['centre'] for o in objs]).reshape(-1, 2),
-                              np.array([o['extent'] for o in objs]).reshape(-1, 2, 2)))
-            est_seq.append(([o.id for o in est],
-                            np.array([[o.position.x, o.position.y]
-                                      for o in est]).reshape(-1, 2),
-                            np.array([np.asarray(o.extent).reshape(2, 2)
-                                      for o in est]).reshape(-1, 2, 2)))
+            truth_seq.append(truth)
+            est_seq.append(est)
             stamps.append(ns)
-            counts.append((len(objs), len(est)))
+            counts.append((len(objs), len(est[0])))
     if not stamps:
         raise BagError('no /tracks message matches a truth stamp')
     score, per = score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P,
@@ -258,6 +233,38 @@ def evaluate_bag(output_bag, truth_path, plot=None):
     if plot:
         _plot(plot, np.array(stamps), per, np.array(counts))
     return score, per, np.array(stamps)
+
+
+def _read_truth(truth_path):
+    """``(objects by stamp, view, scan digest, whether hidden objects are known)`` of a
+    truth file; BagError if it cannot be read."""
+    try:
+        truth = json.loads(Path(truth_path).read_text())
+        by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
+        view = truth.get('info', {}).get('view')
+        digest = truth.get('info', {}).get('scan_digest')
+        # which objects were hidden is known when every object says how many beams
+        # reached it (an older truth file says it of none)
+        beams_known = all('visible_beams' in o for objs in by_stamp.values() for o in objs)
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as err:
+        msg = (f'cannot read the truth {truth_path} (a truth.json written by '
+               f'extended-tracker simulate): {err!r}')
+        raise BagError(msg) from err
+    return by_stamp, view, digest, beams_known
+
+
+def _scan_sets(objs, objects, view):
+    """The truth objects in view, and the truth and estimate sets of one scan (ids,
+    centres, extents) from the truth objects and a message's ``objects``."""
+    objs = [o for o, k in zip(objs, in_view([o['centre'] for o in objs], view)) if k]
+    est_m = np.array([[o.position.x, o.position.y] for o in objects]).reshape(-1, 2)
+    est = [o for o, k in zip(objects, in_view(est_m, view)) if k]
+    truth = ([o['id'] for o in objs], np.array([o['centre'] for o in objs]).reshape(-1, 2),
+             np.array([o['extent'] for o in objs]).reshape(-1, 2, 2))
+    estimated = ([o.id for o in est],
+                 np.array([[o.position.x, o.position.y] for o in est]).reshape(-1, 2),
+                 np.array([np.asarray(o.extent).reshape(2, 2) for o in est]).reshape(-1, 2, 2))
+    return objs, truth, estimated
 
 
 def _check_scans(reader, store, digest, output_bag, truth_path) -> None:
@@ -268,7 +275,7 @@ def _check_scans(reader, store, digest, output_bag, truth_path) -> None:
     """
     import hashlib
 
-    from .sim.bag import scan_ranges_bytes
+    from ..sim.bag import scan_ranges_bytes
 
     h, n = hashlib.sha256(), 0
     conns = [c for c in reader.connections if c.topic == '/scan']

@@ -20,14 +20,15 @@ import time
 
 import numpy as np
 
-from . import stopping
+from .. import stopping
+from ..config import TrackerConfig
+from ..errors import BagError
+from ..pipeline import PipelineState, step
+from ..report.messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
 from .bagio import (
-    BagError, build_message, MARKERS_TYPE, message_typestore, open_scans, SCAN_TYPE,
-    scan_data, staged_bag, TRACKS_TYPE,
+    build_message, MARKERS_TYPE, message_typestore, open_scans, scan_data, SCAN_TYPE, staged_bag,
+    TRACKS_TYPE,
 )
-from .config import TrackerConfig
-from .messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
-from .pipeline import PipelineState, step
 
 SCAN_TOPIC = '/scan'
 TRACKS_TOPIC = '/tracks'
@@ -145,13 +146,11 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
         (:func:`imagefile.image_path`); checked before any scan is read.
 
     """
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
     out = Path(output_path)
     if out.exists():
         raise BagError(f'output {out} exists; refusing to overwrite it')
     if plot_path:             # checked, its folder made: not found wanting after the run
-        from .imagefile import image_path
+        from ..report.imagefile import image_path
 
         plot_path = image_path(plot_path)
     reader, conns = open_scans(input_path, scan_topic)
@@ -160,66 +159,23 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     reader.close()
     if total == 0:
         raise BagError(f'{topic} in {input_path} holds no scans: nothing to replay')
-    store = message_typestore()
     summary = ReplaySummary(topic=topic, output=str(out))
-    times, counts = [], []
-    ids, first_pos, travel = set(), {}, {}
-    bar = _Progress(total) if progress else None
-    prev_ids: set = set()
-    fov = None
+    tally = _Tally()
     sketch = None
     if plot_path:
-        from .plotting import RunSketch
+        from ..report.plotting import RunSketch
 
         sketch = RunSketch(lambda e: shapes(e, cfg.extraction) == SHAPE_RECTANGLE)
+    bar = _Progress(total) if progress else None
     try:
-        with staged_bag(out) as tmp, Writer(tmp, version=9,
-                                            storage_plugin=StoragePlugin.MCAP) as writer:
-            c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
-            c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
-            c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
-            results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames)
-            for k, (scan, res) in enumerate(results):
-                if fov is None and res.event != 'malformed_scan':
-                    fov = _fov(scan)
-                tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
-                mdata, prev_ids = markers_data(res, cfg, prev_ids)
-                markers = build_message(store, MARKERS_TYPE, mdata)
-                writer.write(c_scan, res.stamp_ns, store.serialize_cdr(
-                    build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
-                writer.write(c_tracks, res.stamp_ns, store.serialize_cdr(tracks, TRACKS_TYPE))
-                writer.write(c_markers, res.stamp_ns,
-                             store.serialize_cdr(markers, MARKERS_TYPE))
-                times.append(res.processing_time)
-                counts.append(len(res.estimates))
-                summary.valid_detections += res.diagnostics.get('detections', 0)
-                if res.event:
-                    summary.events[res.event] = summary.events.get(res.event, 0) + 1
-                    if res.error:
-                        summary.first_reasons.setdefault(res.event, res.error)
-                for lab, m in zip(res.estimates.label.tolist(), res.estimates.m[:, :2]):
-                    ids.add(lab)
-                    first_pos.setdefault(lab, m.copy())
-                    travel[lab] = max(travel.get(lab, 0.0),
-                                      float(np.linalg.norm(m - first_pos[lab])))
-                if sketch is not None:
-                    sketch.add(res)
-                if bar:
-                    bar.update(k + 1)
+        results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames)
+        fov = _write_bag(out, results, cfg, tally, sketch, bar)
     finally:
         if bar:
             bar.close()
-    summary.scans = len(times)
-    summary.distinct_ids = len(ids)
-    summary.moving_ids = sum(1 for v in travel.values() if v > 1.0)
-    if times:
-        ms = np.asarray(times) * 1e3
-        summary.median_ms = float(np.median(ms))
-        summary.p99_ms = float(np.percentile(ms, 99))
-        summary.mean_count = float(np.mean(counts))
-        summary.max_count = int(np.max(counts))
+    tally.summarise(summary)
     if sketch is not None:
-        from .plotting import plot_run
+        from ..report.plotting import plot_run
 
         plot_run(sketch, plot_path, title=f'{Path(input_path).name} {topic}: '
                  f'{summary.scans} scans, {summary.distinct_ids} ids', fov=fov)
@@ -227,7 +183,76 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     return summary
 
 
-def _fov(scan):
+def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, bar):
+    """Write every scan and its tracks and markers into the MCAP bag ``out`` (staged, moved
+    into place when complete); count them in ``tally``. Returns the first good scan's
+    field of view."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    store = message_typestore()
+    prev_ids: set = set()
+    fov = None
+    with staged_bag(out) as tmp, Writer(tmp, version=9,
+                                        storage_plugin=StoragePlugin.MCAP) as writer:
+        c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
+        c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
+        c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
+        for k, (scan, res) in enumerate(results):
+            if fov is None and res.event != 'malformed_scan':
+                fov = scan_fov(scan)
+            tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
+            mdata, prev_ids = markers_data(res, cfg, prev_ids)
+            markers = build_message(store, MARKERS_TYPE, mdata)
+            writer.write(c_scan, res.stamp_ns, store.serialize_cdr(
+                build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
+            writer.write(c_tracks, res.stamp_ns, store.serialize_cdr(tracks, TRACKS_TYPE))
+            writer.write(c_markers, res.stamp_ns, store.serialize_cdr(markers, MARKERS_TYPE))
+            tally.add(res)
+            if sketch is not None:
+                sketch.add(res)
+            if bar:
+                bar.update(k + 1)
+    return fov
+
+
+class _Tally:
+    """The figures of a replay, scan by scan: times, counts, events and how far each id
+    travelled from where it was first reported."""
+
+    def __init__(self):
+        self.times, self.counts, self.detections = [], [], 0
+        self.events, self.first_reasons = {}, {}
+        self.first_pos, self.travel = {}, {}
+
+    def add(self, res) -> None:
+        self.times.append(res.processing_time)
+        self.counts.append(len(res.estimates))
+        self.detections += res.diagnostics.get('detections', 0)
+        if res.event:
+            self.events[res.event] = self.events.get(res.event, 0) + 1
+            if res.error:
+                self.first_reasons.setdefault(res.event, res.error)
+        for lab, m in zip(res.estimates.label.tolist(), res.estimates.m[:, :2]):
+            self.first_pos.setdefault(lab, m.copy())
+            self.travel[lab] = max(self.travel.get(lab, 0.0),
+                                   float(np.linalg.norm(m - self.first_pos[lab])))
+
+    def summarise(self, summary: ReplaySummary) -> None:
+        summary.scans = len(self.times)
+        summary.valid_detections = self.detections
+        summary.events.update(self.events)
+        summary.first_reasons.update(self.first_reasons)
+        summary.distinct_ids = len(self.travel)
+        summary.moving_ids = sum(1 for v in self.travel.values() if v > 1.0)
+        if self.times:
+            ms = np.asarray(self.times) * 1e3
+            summary.median_ms = float(np.median(ms))
+            summary.p99_ms = float(np.percentile(ms, 99))
+            summary.mean_count = float(np.mean(self.counts))
+            summary.max_count = int(np.max(self.counts))
+
+
+def scan_fov(scan):
     a0 = float(scan.angle_min)
     a1 = a0 + float(scan.angle_increment) * (len(scan.ranges) - 1)
     rmax = float(scan.range_max)

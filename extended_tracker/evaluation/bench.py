@@ -25,86 +25,25 @@ Timing and memory figures (printed, never asserted): ``extended-tracker bench``.
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
-import platform
-import resource
 import time
 
 import numpy as np
 
-from .config import from_dict
-from .pipeline import PipelineState, step
-from .sensing.scan import scan_to_points
-from .sim.laser import crowd_scene, mixed_traffic_scene, Scene, simulate, tutorial_scene
-from .state import FilterState
-from .tracker import filter_step
+from ..config import from_dict
+from ..pipeline import PipelineState, step
+from ..sensing.scan import scan_to_points
+from ..sim.laser import crowd_scene, mixed_traffic_scene, Scene, simulate, tutorial_scene
+from ..tracker import filter_step, TrackerState
+from .timing import (
+    _growth_cases, exp_ns, growth_exponent, machine_line, peak_rss_mb, reference_ms, report_growth,
+    rss_mb, timing_stats,
+)
 
 
 def stress_scene() -> Scene:
     """S3: 40 pedestrians, 1081 beams over 270 deg, 30 m, 20 clutter returns per scan."""
     return crowd_scene(40, seed=11, beams=1081, fov_deg=270.0, range_max=30.0, clutter=20.0)
-
-
-def machine_line() -> str:
-    """The CPU, its count, and the Python and numpy builds the figures come from."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open('/proc/cpuinfo') as fh:
-            cpu = next((ln.split(':', 1)[1].strip() for ln in fh
-                        if ln.startswith('model name')), cpu)
-    except OSError:
-        pass
-    simd = np.show_config(mode='dicts').get('SIMD Extensions', {})
-    found = ' '.join(simd.get('found', [])) or 'baseline only'
-    import scipy
-
-    return (f'machine: {cpu}, {os.cpu_count()} CPUs; Python {platform.python_version()}, '
-            f'numpy {np.__version__} (SIMD {found}), scipy {scipy.__version__}')
-
-
-def exp_ns(reps: int = 15, size: int = 4096) -> float:
-    """
-    Median ns per element of ``np.exp`` on float64: where numpy has no vectorised kernel
-    for the CPU it calls the C library's scalar ``exp``, several times slower, and the
-    filter's log-domain sums pay it (a few thousand elements a step).
-    """
-    x = np.linspace(-30.0, 0.0, size)
-    out = np.empty(size)
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        np.exp(x, out=out)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) / size * 1e9)
-
-
-def reference_ms(reps: int = 15) -> float:
-    """
-    Median ms of a fixed workload: 1000 numpy operations on arrays of two dozen elements
-    with the Python around them, the kind of work a filter step is made of. Its swings from
-    minute to minute are the machine's, so it reads beside the step times.
-    """
-    a = np.linspace(-3.0, 3.0, 24)
-    b = a[::-1].copy()
-    idx = np.arange(0, 24, 2)
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        for _ in range(100):
-            c = np.exp(a - b)
-            s = np.sum(c)
-            m = np.maximum(a, b)
-            order = m.argsort()
-            d = c[order] * s
-            np.concatenate([d[idx], a[:3]])
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times) * 1e3)
-
-
-def _stats(seconds):
-    ms = np.asarray(seconds) * 1e3
-    return float(np.median(ms)), float(np.percentile(ms, 99)), float(np.max(ms))
 
 
 def bench_filter(counts, scans, warm=10, run_scans=60, beams=361, fov_deg=180.0):
@@ -133,7 +72,7 @@ def _filter_case(n, beams, fov_deg, scans, warm=10, run_scans=60):
     cfg = from_dict({'background': {'enabled': False}})
     runs = _pedestrian_runs(n, max(1, scans // run_scans), run_scans, warm, beams, fov_deg)
     times, diags = _filter_times(runs, cfg, warm)
-    med, p99, _ = _stats(times)
+    med, p99, _ = timing_stats(times)
     return (float(np.mean([d.detections for d in diags])),
             float(np.mean([d.cells for d in diags])),
             float(np.mean([d.partitions for d in diags])), med, p99)
@@ -160,54 +99,12 @@ def bench_detections(scans, cases=DETECTION_CASES, warm=10, run_scans=60):
     return rows
 
 
-def growth_exponent(x, y) -> float:
-    """
-    Least-squares slope of ``log y`` against ``log x``: ``y ~ x^k`` gives ``k`` (1 is
-    linear growth, below 1 slower).
-    """
-    x = np.log(np.asarray(x, dtype=float))
-    y = np.log(np.asarray(y, dtype=float))
-    x = x - x.mean()
-    return float(np.dot(x, y - y.mean()) / np.dot(x, x))
-
-
-def _growth_cases(rows, fixed_ms: float):
-    """Objects x cells, detections and the time above ``fixed_ms`` of the ``rows``
-    (``(objects, detections, cells, median ms)``) with objects and a time above it, as
-    arrays; None when fewer than two are left to fit."""
-    used = [(n * c, d, t - fixed_ms) for n, d, c, t in rows if n > 0 and t > fixed_ms]
-    if len(used) < 2:
-        return None
-    return tuple(np.array(a, dtype=float) for a in zip(*used))
-
-
-def report_growth(rows, fixed_ms: float) -> tuple[float, float]:
-    """
-    How the filter step's cost grows: the exponent of its time above the fixed cost
-    (the step on a scan with no returns and no tracks) against objects x cells and
-    against detections, over ``rows`` of ``(objects, detections, cells, median ms)``
-    (those with objects and a time above the fixed cost). Printed and returned.
-    """
-    cases = _growth_cases(rows, fixed_ms)
-    if cases is None:
-        print('growth: too few cases above the fixed cost to fit')
-        return float('nan'), float('nan')
-    oc, d, extra = cases
-    k_oc = growth_exponent(oc, extra)
-    k_d = growth_exponent(d, extra)
-    print(f'growth of the filter step above its fixed cost ({fixed_ms:.2f} ms), {len(oc)} '
-          f'cases: time ~ (objects x cells)^{k_oc:.2f} '
-          f'(objects x cells {int(oc.min())}-{int(oc.max())}), '
-          f'~ detections^{k_d:.2f} ({int(d.min())}-{int(d.max())}); 1 is linear')
-    return k_oc, k_d
-
-
 def _filter_times(runs, cfg, warm):
     """Seconds of each filter step after the first ``warm`` of every run, and their
     diagnostics."""
     times, diags = [], []
     for pts in runs:
-        state = FilterState.initial(cfg)
+        state = TrackerState.initial(cfg)
         for k, sp in enumerate(pts):
             t0 = time.perf_counter()
             state, _, diag = filter_step(state, sp.points, 0.1, cfg, clutter_area=sp.area)
@@ -290,7 +187,7 @@ def bench_pipeline(scans):
             d = r.diagnostics
             caps += [d['capped_partitions'] > 0, d['capped_cells'] > 0,
                      d['capped_components'] > 0]
-        med, p99, mx = _stats(times)
+        med, p99, mx = timing_stats(times)
         print(f'{name:40s} {scene.laser.n_beams:5d} {np.mean(dets):5.0f} {med:9.2f} '
               f'{p99:7.2f} {mx:7.2f} {"/".join(str(c) for c in caps):>40s}')
 
@@ -333,7 +230,7 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
         for name, run, med_t, p99_t in (cases if r % 2 == 0 else cases[::-1]):
             t = run()
             pooled[name] += t
-            med, p99, _ = _stats(t)
+            med, p99, _ = timing_stats(t)
             medians[name].append(med)
             met[name] += (med_t is None or med <= med_t) and (p99_t is None or p99 <= p99_t)
     print(f'\ntargets, {rounds} interleaved rounds (median and p99 over all rounds; '
@@ -341,7 +238,7 @@ def bench_targets(rounds=5, scans=300, run_scans=60, warm=10):
     print(f'{"case":40s} {"median ms":>9s} {"p99 ms":>7s} {"round medians ms":>17s} '
           f'{"target ms":>15s} {"rounds met":>10s}')
     for name, _, med_t, p99_t in cases:
-        med, p99, _ = _stats(pooled[name])
+        med, p99, _ = timing_stats(pooled[name])
         lo, hi = min(medians[name]), max(medians[name])
         target = ' / '.join('-' if t is None else f'{t:g}' for t in (med_t, p99_t))
         print(f'{name:40s} {med:9.2f} {p99:7.2f} {f"{lo:.2f}-{hi:.2f}":>17s} {target:>15s} '
@@ -373,35 +270,14 @@ def bench_memory(n_scans):
         scan.header.stamp = type(scan.header.stamp)(ns // 10**9, ns % 10**9)
         state, _ = step(state, scan, cfg)
         if k % 1000 == 0 or k == n_scans - 1:
-            rss.append((k, _rss_mb()))
+            rss.append((k, rss_mb()))
     print(f'\nresident memory over {n_scans} scans: ' + ', '.join(f'{k}: {m:.1f} MB'
                                                               for k, m in rss))
     # growth after the first 1000 scans (caches filled), when the run is longer than that
     k0, m0 = rss[1] if len(rss) > 2 else rss[0]
     print(f'growth from scan {k0} to {rss[-1][0]}: {rss[-1][1] - m0:.2f} MB')
     print(f'peak resident memory of the bench process (all cases so far): '
-          f'{_peak_rss_mb():.1f} MB')
-
-
-def _peak_rss_mb():
-    """The process's peak resident memory (MB): VmHWM, the high-water mark of VmRSS."""
-    try:
-        with open('/proc/self/status') as fh:
-            for line in fh:
-                if line.startswith('VmHWM:'):
-                    return int(line.split()[1]) / 1024
-    except OSError:
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
-def _rss_mb():
-    try:
-        with open('/proc/self/statm') as fh:
-            pages = int(fh.read().split()[1])
-        return pages * resource.getpagesize() / 2**20
-    except OSError:
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+          f'{peak_rss_mb():.1f} MB')
 
 
 def bench_scaling(png: str, scans: int = 40, growth_rows=None, fixed_ms: float = 0.0):
@@ -468,7 +344,7 @@ def _median_step(scene, cfg, scans):
 
 def bench_node():
     try:
-        from .ros.bench_node import node_overhead
+        from ..ros.bench_node import node_overhead
     except ImportError as err:         # no ROS in this environment
         print(f'\nnode overhead: skipped ({err})')
         return
@@ -506,7 +382,7 @@ def main(argv=None) -> int:
     if args.profile:
         bench_profile()
         return 0
-    from .imagefile import image_path
+    from ..report.imagefile import image_path
 
     png = image_path(args.png)       # checked now, not after minutes of timing
     scans = 60 if args.quick else 300

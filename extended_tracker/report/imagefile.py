@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .errors import PlotError
+from ..errors import PlotError
 
 # the suffixes savefig writes (matplotlib's FigureCanvasBase.get_supported_filetypes() of
 # the pinned release, which a test holds this to), less pgf: it needs a LaTeX install

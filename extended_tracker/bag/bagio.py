@@ -15,19 +15,19 @@ from pathlib import Path
 import shutil
 import sys
 
-from . import stopping
-from .errors import BagError
+from .. import stopping
+from ..errors import BagError
 
 MSG_PACKAGE = 'extended_tracker_msgs'
 MSG_NAMES = ('ExtendedObject', 'ExtendedObjectArray')
 
 
-def _msg_dirs() -> list[Path]:
+def message_dirs() -> list[Path]:
     """Candidate ``msg`` folders: ament prefixes, this interpreter's prefix, the source tree."""
     prefixes = [p for p in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
     prefixes.append(sys.prefix)
     dirs = [Path(p) / 'share' / MSG_PACKAGE / 'msg' for p in prefixes]
-    dirs.append(Path(__file__).resolve().parents[1] / 'interfaces' / MSG_PACKAGE / 'msg')
+    dirs.append(Path(__file__).resolve().parents[2] / 'interfaces' / MSG_PACKAGE / 'msg')
     return dirs
 
 
@@ -41,12 +41,12 @@ def find_msg_definitions() -> dict[str, str]:
         When no installed or source copy of the definitions is found.
 
     """
-    for folder in _msg_dirs():
+    for folder in message_dirs():
         if all((folder / f'{n}.msg').is_file() for n in MSG_NAMES):
             return {
                 f'{MSG_PACKAGE}/msg/{n}': (folder / f'{n}.msg').read_text() for n in MSG_NAMES
             }
-    searched = ', '.join(str(d) for d in _msg_dirs())
+    searched = ', '.join(str(d) for d in message_dirs())
     raise BagError(f'extended_tracker_msgs definitions not found (searched {searched})')
 
 

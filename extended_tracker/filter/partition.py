@@ -17,16 +17,12 @@ spanning tree of the radius-``d_max`` graph, so all partitions come from one MST
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import threading
 
 import numpy as np
-from scipy.cluster.hierarchy import linkage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import minimum_spanning_tree
-from scipy.spatial import cKDTree, Delaunay, QhullError
-from scipy.spatial.distance import pdist
 
+from .distance import distance_partitions
 from .ggiw import centre_distance2
+from .kmeans import kmeans_pp
 
 
 @dataclass
@@ -171,306 +167,12 @@ def _groups(labels: np.ndarray, with_labels: bool = False):
     return [lab[a] for a in cuts[:-1]], cells
 
 
-LINKAGE_MAX = 1150      # up to this many detections: scipy's single linkage on all pairs
-
-
-def _merges(points: np.ndarray, d_max: float):
-    """
-    The single-linkage merges up to height ``d_max``, in ascending height.
-
-    Returns
-    -------
-    a, b : lists of k ints
-        The smallest detection index of each of the two clusters joined, the smaller
-        first (``a[i] < b[i]``).
-    height : (k,) array
-        The merge heights (the minimum spanning forest's edge lengths).
-
-    Notes
-    -----
-    Up to ``LINKAGE_MAX`` detections this is scipy's single linkage over all pairwise
-    distances (an O(n^2) MST in C: 1.2 ms for 600 returns of a 4000-beam scan, 3.1 ms for
-    1000, where the path below took 2.5 and 3.9 ms); beyond it, scipy's sparse MST over
-    the Delaunay edges no longer than ``d_max`` (:func:`_mst_edges`: 5.3 ms for 1500
-    returns against linkage's 6.9, 6.3 for 1700 against 10.0), whose merges are read by a
-    union-find pass. Both give the same merge heights, so the same partitions.
-    """
-    n = len(points)
-    if n < 2:
-        return [], [], np.zeros(0)
-    if n <= LINKAGE_MAX:
-        z = linkage(pdist(points), method='single')
-        k = int(z[:, 2].searchsorted(d_max, side='right'))
-        pair = z[:k, :2].astype(np.int64).tolist()
-        rep = list(range(n)) + [0] * k                # a cluster's smallest detection index
-        a, b = [0] * k, [0] * k
-        for i, (u, v) in enumerate(pair):
-            ru, rv = rep[u], rep[v]
-            if ru < rv:
-                a[i], b[i] = ru, rv
-                rep[n + i] = ru
-            else:
-                a[i], b[i] = rv, ru
-                rep[n + i] = rv
-        return a, b, z[:k, 2].copy()
-    rows, cols, length = _mst_edges(points, d_max)
-    order = np.argsort(length, kind='stable')
-    parent = list(range(n))
-    a, b = [], []
-    for u, v in zip(rows[order].tolist(), cols[order].tolist()):
-        ru, rv = find_root(parent, u), find_root(parent, v)
-        lo, hi = (ru, rv) if ru < rv else (rv, ru)
-        a.append(lo)
-        b.append(hi)
-        parent[hi] = lo
-    return a, b, length[order]
-
-
-def _mst_edges(points: np.ndarray, d_max: float):
-    """
-    Edges (i, j, length) of the minimum spanning forest of the radius-``d_max`` graph.
-
-    Notes
-    -----
-    The Delaunay triangulation's edges hold the Euclidean minimum spanning tree, so its
-    edges no longer than ``d_max`` hold the forest: at most ``3n`` edges, whatever the
-    density. The pairs within ``d_max`` are listed only where qhull cannot triangulate
-    (all returns on one line). Past ``LINKAGE_MAX`` returns a scan comes from a
-    high-resolution scanner and is dense along its surfaces (4000 beams: 6 mm apart at
-    5 m, hundreds of returns within ``d_max`` of each), where listing the pairs, or even
-    counting them to choose, costs more than the triangulation (a 12 700-return scan
-    listed 12 million pairs: 0.7 s and 1 GB).
-    """
-    n = len(points)
-    pairs = _delaunay_pairs(points)
-    if pairs is None:                     # all on a line: no triangulation
-        pairs = cKDTree(points).query_pairs(d_max, output_type='ndarray')
-        if not len(pairs):
-            return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
-    d = np.linalg.norm(points[pairs[:, 0]] - points[pairs[:, 1]], axis=1)
-    near = d <= d_max
-    pairs, d = pairs[near], d[near]
-    # zero-length edges (repeated points) would vanish from a sparse matrix: lift them
-    d = np.maximum(d, 1e-12)
-    graph = coo_matrix((d, (pairs[:, 0], pairs[:, 1])), shape=(n, n)).tocsr()
-    mst = minimum_spanning_tree(graph).tocoo()
-    return mst.row, mst.col, mst.data
-
-
-def _delaunay_pairs(points: np.ndarray):
-    """
-    Edges ``(i, j)``, ``i < j``, of the Delaunay triangulation, which contain the
-    Euclidean minimum spanning tree, each once, in ascending order; duplicate points (left
-    out of the triangulation) are joined to the vertex they coincide with. ``None`` where
-    qhull cannot triangulate (all points on a line).
-    """
-    try:
-        tri = Delaunay(points)
-    except QhullError:
-        return None
-    s = tri.simplices.astype(np.int64)
-    a = np.concatenate([s[:, 0], s[:, 1], s[:, 0]])
-    b = np.concatenate([s[:, 1], s[:, 2], s[:, 2]])
-    if len(tri.coplanar):
-        a = np.concatenate([a, tri.coplanar[:, 0]])
-        b = np.concatenate([b, tri.coplanar[:, 2]])
-    # one integer per edge: a 1-D unique, where unique over rows took 4 of the 5 ms
-    n = len(points)
-    key = np.unique(np.minimum(a, b) * n + np.maximum(a, b))
-    return np.column_stack([key // n, key % n])
-
-
-def find_root(parent, x):
-    """Root of ``x`` in a union-find forest (list or int array), halving the path."""
-    while parent[x] != x:
-        parent[x] = parent[parent[x]]
-        x = parent[x]
-    return x
-
-
-def union_min(parent, a, b) -> bool:
-    """Join the trees of ``a`` and ``b`` under the smaller root; False if already one."""
-    ra, rb = find_root(parent, a), find_root(parent, b)
-    if ra == rb:
-        return False
-    parent[max(ra, rb)] = min(ra, rb)
-    return True
-
-
-def distance_partitions(points: np.ndarray, d_min: float, d_max: float,
-                        max_thresholds: int) -> tuple[list[np.ndarray], int]:
-    """
-    Label arrays of distance partitioning for all distinct thresholds in ``[d_min, d_max]``.
-
-    Returns
-    -------
-    partitions : list of (m,) int arrays
-        From the finest (threshold ``d_min``) to the coarsest; a label is the smallest
-        detection index of its cell.
-    dropped : int
-        Distinct thresholds left out by ``max_thresholds`` (evenly thinned).
-
-    Notes
-    -----
-    The single-linkage merges are applied in ascending height and the labels read at each
-    kept threshold.
-
-    """
-    n = len(points)
-    if n == 0:
-        return [], 0
-    a, b, length = _merges(points, d_max)
-    # thresholds: d_min, then every distinct merge height in (d_min, d_max] (the merges
-    # come in ascending height, so the distinct ones follow a change)
-    above = length[length > d_min]
-    distinct = np.empty(len(above), dtype=bool)
-    distinct[:1] = True
-    np.not_equal(above[1:], above[:-1], out=distinct[1:])
-    thresholds = np.concatenate([[d_min], above[distinct]])
-    dropped = 0
-    if len(thresholds) > max_thresholds:
-        keep = np.unique(np.round(np.linspace(0, len(thresholds) - 1,
-                                              max_thresholds)).astype(int))
-        dropped = len(thresholds) - len(keep)
-        thresholds = thresholds[keep]
-    stops = length.searchsorted(thresholds, side='right').tolist()
-    if n <= PASS_MAX_RETURNS:
-        return _labels_by_pass(a, b, stops, n), dropped
-    return _labels_by_jumping(a, b, stops, n), dropped
-
-
-# up to this many returns the labels are read by a Python pass over the forest at each
-# threshold (a few microseconds); past it by numpy pointer jumping, whose cost per
-# threshold hardly grows with n (the two cross near 100 returns)
-PASS_MAX_RETURNS = 100
-
-
-def _labels_by_pass(a: list, b: list, stops: list, n: int) -> list[np.ndarray]:
-    """Labels at each stop: the merges up to it, then one pass reading the roots."""
-    # each merge joins two roots (smallest indices) under the smaller one, so a parent is
-    # always below its child: one pass in index order reads every root off its parent's
-    parent = list(range(n))
-    out = []
-    done = 0
-    for stop in stops:
-        for i in range(done, stop):
-            parent[b[i]] = a[i]
-        done = stop
-        labels = parent.copy()
-        for i in range(n):
-            labels[i] = labels[labels[i]]
-        out.append(np.array(labels, dtype=np.int64))
-    return out
-
-
-def _labels_by_jumping(a: list, b: list, stops: list, n: int) -> list[np.ndarray]:
-    """The same labels as :func:`_labels_by_pass`, the roots found by pointer jumping."""
-    parent = np.arange(n)
-    lo, hi = np.array(a, dtype=np.int64), np.array(b, dtype=np.int64)
-    out = []
-    done = 0
-    for stop in stops:
-        if done < stop:
-            parent[hi[done:stop]] = lo[done:stop]
-            parent = _roots(parent)
-            done = stop
-        out.append(parent.copy())
-    return out
-
-
-def _roots(parent: np.ndarray) -> np.ndarray:
-    """Root of every node of a union-find forest by pointer jumping (vectorised)."""
-    labels = parent
-    while True:
-        nxt = labels[labels]
-        if np.all(nxt == labels):
-            return labels
-        labels = nxt
-
-
 def _sums_by(labels: np.ndarray, points: np.ndarray, n: int) -> np.ndarray:
     """(n, 2) sums of the points of each label ``0..n-1``."""
     out = np.empty((n, 2))
     out[:, 0] = np.bincount(labels, weights=points[:, 0], minlength=n)
     out[:, 1] = np.bincount(labels, weights=points[:, 1], minlength=n)
     return out
-
-
-_THREAD = threading.local()      # generators are stateful: one set per thread
-
-
-def _seeded_generator(seed: int) -> np.random.Generator:
-    """
-    ``np.random.default_rng(seed)`` as new: a cached generator (per thread) put back to
-    its seeded state; expanding a seed sequence costs tens of microseconds per k-means.
-    """
-    cache = getattr(_THREAD, 'generators', None)
-    if cache is None:
-        cache = _THREAD.generators = {}
-    entry = cache.get(seed)
-    if entry is None:
-        gen = np.random.default_rng(seed)
-        entry = cache[seed] = (gen, gen.bit_generator.state)
-    entry[0].bit_generator.state = entry[1]
-    return entry[0]
-
-
-def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
-              init: np.ndarray | None = None) -> np.ndarray:
-    """
-    Deterministic k-means (k-means++ seeding unless ``init`` centres are given).
-
-    Returns the label of each point; empty clusters are dropped from the labels.
-    """
-    n = len(points)
-    if k >= n:
-        return np.arange(n)
-    x, y = points[:, 0], points[:, 1]
-    if init is None:
-        rng = _seeded_generator(seed)
-        first = points[rng.integers(n)]
-        centres = [first]
-        dx, dy = x - first[0], y - first[1]
-        d2 = dx * dx + dy * dy                                 # to the nearest centre so far
-        for _ in range(1, k):
-            total = np.sum(d2)
-            if total <= 0:
-                break
-            # rng.choice(n, p=d2 / total) without its argument checks: the same cdf, the
-            # same single uniform draw, the same index
-            cdf = (d2 / total).cumsum()
-            cdf /= cdf[-1]
-            c = points[int(cdf.searchsorted(rng.random(), side='right'))]
-            centres.append(c)
-            dx, dy = x - c[0], y - c[1]
-            np.minimum(d2, dx * dx + dy * dy, out=d2)
-        centres = np.array(centres)
-    else:
-        centres = np.array(init, dtype=float)
-    labels = np.zeros(n, dtype=np.int64)
-    # squares as products (x ** 2 is x * x in numpy, bit for bit, but a Python operand
-    # costs each call more than the arithmetic here); the centres' coordinates as arrays
-    # of their own, not columns of a (k, 2) array rebuilt each iteration
-    x_col, y_col = x[:, None], y[:, None]
-    k = len(centres)
-    cx, cy = centres[:, 0], centres[:, 1]
-    for _ in range(iters):
-        dx, dy = x_col - cx, y_col - cy
-        new = (dx * dx + dy * dy).argmin(axis=1)
-        if _ and np.all(new == labels):       # not array_equal's wrapper
-            break
-        labels = new
-        # each centre moves to the mean of its points; an empty cluster's centre stays
-        count = np.bincount(labels, minlength=k)
-        sx = np.bincount(labels, weights=x, minlength=k)
-        sy = np.bincount(labels, weights=y, minlength=k)
-        filled = count > 0
-        if np.all(filled):
-            cx, cy = sx / count, sy / count
-        else:
-            cx[filled] = sx[filled] / count[filled]
-            cy[filled] = sy[filled] / count[filled]
-    return labels
 
 
 MIN_RATE = 1e-9
@@ -611,3 +313,57 @@ def _sub_partitions(points, pset, base, big, d2, predicted, cfg, seed):
         new = base.copy()
         new[idx] = base.max() + 1 + sub
         pset.add(new, cfg.max_partitions, cfg.max_cells)
+
+
+def distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
+    """
+    ``partitions`` without those that repeat an earlier one once every ``lonely`` cell is
+    taken as its returns one by one, as the update takes it.
+
+    Notes
+    -----
+    A lonely cell (several returns no object and no birth explains) is evaluated as that
+    many clutter returns, and so is the same returns' split into lone returns that
+    ``partition.split_small`` adds, or into a smaller lonely cell and lone returns that a
+    finer distance threshold gives: such partitions are one hypothesis, and kept all it
+    would count several times. In the ``clutter`` scene, with births on the clutter by
+    the scanner refused, 352 of 600 scans had such twins (seeds 10-14).
+
+    A partition is written as its parts: a return ``z`` (a singleton, or a lonely cell's
+    member) as code ``z``, any other cell ``c`` as ``m + c``. Each code gets a 64-bit
+    value (splitmix64) and a partition the wrapping sum of its parts' values, all in a few
+    array operations; only partitions whose sums agree are compared code by code (sorted),
+    so a collision of sums can never drop a partition that differs.
+    """
+    sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=len(partitions))
+    if len(partitions) < 2 or not np.all(sizes):
+        return partitions
+    n_cells = len(cells)
+    member_sum = np.add.reduceat(mix64(np.concatenate(cells)),          # size: returns
+                                 np.concatenate([[0], np.cumsum(size)[:-1]]))  # per cell
+    as_returns = lonely | (size == 1)
+    cell_val = np.where(as_returns, member_sum, mix64(m + np.arange(n_cells)))
+    flat = np.concatenate(partitions)
+    total = np.add.reduceat(cell_val[flat], np.concatenate([[0], np.cumsum(sizes)[:-1]]))
+    _, inverse, counts = np.unique(total, return_inverse=True, return_counts=True)
+    if counts.max() == 1:
+        return partitions
+    keep, seen = [], set()
+    for i, p in enumerate(partitions):
+        if counts[inverse[i]] == 1:
+            keep.append(p)
+            continue
+        parts = [cells[c] if as_returns[c] else np.array([m + c]) for c in p.tolist()]
+        key = np.sort(np.concatenate(parts)).tobytes()
+        if key not in seen:
+            seen.add(key)
+            keep.append(p)
+    return keep
+
+
+def mix64(x: np.ndarray) -> np.ndarray:
+    """splitmix64 of integers ``x``: well-spread 64-bit values, wrapping arithmetic."""
+    z = np.asarray(x, dtype=np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))

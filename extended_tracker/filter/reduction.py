@@ -16,9 +16,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import digamma, zeta
 
-from .ggiw import (
-    D, eig2, inv2, IW_OFFSET, logdet_spd2, Mixture, symmetrize, weight_key,
-)
+from .algebra2 import eig2, inv2, logdet_spd2, symmetrize
+from .mixture import D, IW_OFFSET, Mixture, weight_key
 
 ABSORB_RATIO = 0.01     # lighter members are absorbed into their label's head
 MEAN_EXTENT_RATIO = 2.0  # a merged E[X] may exceed the members' mean E[X] this much (trace)
@@ -87,7 +86,7 @@ NU_BASE = IW_OFFSET - D - 1          # nu = d + 1 is v = 2d + 2
 NU_MIN = NU_BASE + 1e-9
 
 
-def _solve_nu(target, lo, hi, start, iters=60):
+def solve_nu(target, lo, hi, start, iters=60):
     """
     Root of ``f(nu) = d log nu - sum_j digamma((nu - j + 1)/2) - target`` (decreasing)
     in ``[lo, hi]``, one per entry: the end of the bracket where the root lies outside it.
@@ -187,7 +186,7 @@ def merge_iw(w, v, V):
     ``V = nu Psi^-1`` with ``Psi = sum w_i nu_i V_i^-1`` and
     ``f(nu) = d log nu - sum_j digamma((nu-j+1)/2) - (c + log|Psi| + d log 2) = 0``; ``f``
     decreases in ``nu``. Newton starts at the weighted mean of the ``nu_i`` (a few steps
-    from the root) inside a bracket (:func:`_solve_nu`): at most the largest ``nu_i`` (a
+    from the root) inside a bracket (:func:`solve_nu`): at most the largest ``nu_i`` (a
     merge is never more certain than its most certain member) and above ``d + 1`` so that
     ``v > 2d + 2``.
 
@@ -206,7 +205,7 @@ def merge_iw(w, v, V):
     target = elog + float(logdet_spd2(Psi))            # the d log 2 terms cancel
     mean_x = np.sum(wn[:, None, None] * V / (v - IW_OFFSET)[:, None, None], axis=0)
     lo = _nu_floor(np.trace(mean_x), np.trace(inv2(Psi)))
-    nu = float(_solve_nu(np.array([target]), np.array([lo]), np.array([np.max(nu_i)]),
+    nu = float(solve_nu(np.array([target]), np.array([lo]), np.array([np.max(nu_i)]),
                          np.array([np.sum(wn * nu_i)]))[0])
     V_new = _floor_extent(nu * inv2(Psi)[None], np.array([nu + D + 1]))[0]
     return float(nu + D + 1), symmetrize(V_new)
@@ -261,7 +260,7 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
     mean_x = np.add.reduceat(wn[:, None, None] * mix.expected_extent(idx), starts)
     iPsi = inv2(Psi)
     lo = _nu_floor(mean_x[:, 0, 0] + mean_x[:, 1, 1], iPsi[:, 0, 0] + iPsi[:, 1, 1])
-    nu = _solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
+    nu = solve_nu(target, lo, np.maximum.reduceat(nu_i, starts),
                    np.add.reduceat(wnu, starts))
     V = _floor_extent(nu[:, None, None] * iPsi, nu + 2.0 + 1.0)
     # label of the heaviest member
@@ -302,61 +301,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         mix = mix.take(keep)
     if not len(mix):
         return mix, 0
-    # Common case in one pass: every component of a label lies within the merge distance
-    # of the label's heaviest component; only the other labels go through the greedy loop.
-    order, first, gid = mix.by_label()
-    n_groups = int(gid[-1]) + 1
-    heads = order[first]
-    head = heads[gid]                                  # heaviest of each member's label
-    pos = mix.m[:, :2]
-    e = pos[order] - pos[head]
-    d2 = np.einsum('ki,kij,kj->k', e, inv2(mix.P[heads][:, :2, :2])[gid], e)
-    # per label, a handful of them: its members (heaviest first), whether one lies beyond
-    # the merge distance, and whether one has 1 % of the head's weight or more (lighter
-    # members move it by less than that: their weight is added to the head instead of a
-    # full moment match)
-    members = [[] for _ in range(n_groups)]
-    member_w = [[] for _ in range(n_groups)]
-    far_group = [False] * n_groups
-    heavy = [False] * n_groups
-    w_order = mix.w[order].tolist()
-    head_w = 0.0
-    for i, (g, o, far, w) in enumerate(zip(gid.tolist(), order.tolist(),
-                                          (d2 > merge_distance).tolist(), w_order)):
-        if not members[g]:
-            head_w = w
-        elif w >= ABSORB_RATIO * head_w:
-            heavy[g] = True
-        members[g].append(o)
-        member_w[g].append(w)
-        far_group[g] = far_group[g] or far
-    kept, multi, absorbed, absorbed_w = [], [], [], []
-    for g, group in enumerate(members):
-        if far_group[g]:
-            continue
-        if len(group) == 1:
-            kept.append(group[0])
-        elif heavy[g]:
-            multi.append(np.array(group, dtype=np.int64))
-        else:
-            absorbed.append(group[0])
-            ws = member_w[g]
-            total = ws[0]
-            for x in ws[1:]:                           # in order, as reduceat adds
-                total += x
-            absorbed_w.append(total)
-    for g in (g for g, far in enumerate(far_group) if far):
-        remaining = np.array(members[g], dtype=np.int64)    # heaviest first
-        while len(remaining):
-            j = remaining[0]
-            e = mix.m[remaining, :2] - mix.m[j, :2]
-            d2 = np.einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
-            near = d2 <= merge_distance
-            if near.sum() > 1:
-                multi.append(remaining[near])
-            else:
-                kept.extend(remaining[near].tolist())
-            remaining = remaining[~near]
+    kept, multi, absorbed, absorbed_w = _plan_merges(mix, merge_distance)
     # labels kept as their head: alone, or absorbing light members (after the others)
     rows = np.array(kept + absorbed, dtype=np.int64)
     w = mix.w[rows]
@@ -372,6 +317,90 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
         capped = len(merged) - max_components
         merged = merged.take(np.sort(order))
     return merged, capped
+
+
+def _plan_merges(mix: Mixture, merge_distance: float):
+    """
+    ``(kept, multi, absorbed, absorbed_w)``: components kept as they are, groups to merge
+    by moment matching, heads that absorb their light members' weight, and those weights.
+
+    Common case in one pass: every component of a label lies within the merge distance of
+    the label's heaviest component; only the other labels go through the greedy loop
+    (:func:`_greedy_groups`).
+    """
+    members, member_w, far_group, heavy = _label_members(mix, merge_distance)
+    kept, multi, absorbed, absorbed_w = [], [], [], []
+    for g, group in enumerate(members):
+        if far_group[g]:
+            continue                                   # after the others, below
+        if len(group) == 1:
+            kept.append(group[0])
+        elif heavy[g]:
+            multi.append(np.array(group, dtype=np.int64))
+        else:
+            absorbed.append(group[0])
+            ws = member_w[g]
+            total = ws[0]
+            for x in ws[1:]:                           # in order, as reduceat adds
+                total += x
+            absorbed_w.append(total)
+    for g in (g for g, far in enumerate(far_group) if far):
+        kept_g, multi_g = _greedy_groups(mix, np.array(members[g], dtype=np.int64),
+                                         merge_distance)
+        kept.extend(kept_g)
+        multi.extend(multi_g)
+    return kept, multi, absorbed, absorbed_w
+
+
+def _label_members(mix: Mixture, merge_distance: float):
+    """
+    Per label: its members (heaviest first) and their weights, whether one lies beyond the
+    merge distance of the head, and whether one has ``ABSORB_RATIO`` of the head's weight
+    or more (lighter members move it by less than that: their weight is added to the head
+    instead of a full moment match).
+    """
+    order, first, gid = mix.by_label()
+    n_groups = int(gid[-1]) + 1
+    heads = order[first]
+    head = heads[gid]                                  # heaviest of each member's label
+    pos = mix.m[:, :2]
+    e = pos[order] - pos[head]
+    d2 = np.einsum('ki,kij,kj->k', e, inv2(mix.P[heads][:, :2, :2])[gid], e)
+    members = [[] for _ in range(n_groups)]
+    member_w = [[] for _ in range(n_groups)]
+    far_group = [False] * n_groups
+    heavy = [False] * n_groups
+    head_w = 0.0
+    for g, o, far, w in zip(gid.tolist(), order.tolist(), (d2 > merge_distance).tolist(),
+                            mix.w[order].tolist()):
+        if not members[g]:
+            head_w = w
+        elif w >= ABSORB_RATIO * head_w:
+            heavy[g] = True
+        members[g].append(o)
+        member_w[g].append(w)
+        far_group[g] = far_group[g] or far
+    return members, member_w, far_group, heavy
+
+
+def _greedy_groups(mix: Mixture, remaining: np.ndarray, merge_distance: float):
+    """
+    Greedy merging of one label's members (heaviest first): the heaviest remaining
+    absorbs those within ``merge_distance`` of its position. Returns the components kept
+    alone and the groups to merge.
+    """
+    kept, multi = [], []
+    while len(remaining):
+        j = remaining[0]
+        e = mix.m[remaining, :2] - mix.m[j, :2]
+        d2 = np.einsum('ki,ij,kj->k', e, inv2(mix.P[j, :2, :2]), e)
+        near = d2 <= merge_distance
+        if near.sum() > 1:
+            multi.append(remaining[near])
+        else:
+            kept.extend(remaining[near].tolist())
+        remaining = remaining[~near]
+    return kept, multi
 
 
 def join_parts(mix: Mixture, heads: np.ndarray, weights: np.ndarray, label: int) -> Mixture:

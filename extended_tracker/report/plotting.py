@@ -14,8 +14,8 @@ import math
 import matplotlib
 
 matplotlib.use('Agg')
-import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Polygon, Wedge  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from .messages import id_rgba, outline_xy  # noqa: E402
@@ -60,7 +60,7 @@ class RunSketch:
         self.scans = 0
         self.tracks: dict = {}            # label -> x, y, major, minor, yaw, rectangle, ...
         self.stride = 1
-        self._clouds: list = []           # (scan index, detections, background returns)
+        self.clouds: list = []           # (scan index, detections, background returns)
         self._kept = 0
 
     def add(self, result) -> None:
@@ -81,12 +81,12 @@ class RunSketch:
         pts, bg = result.points, result.background_points
         if k % self.stride or not (len(pts) or len(bg)):
             return
-        self._clouds.append((k, np.array(pts), np.array(bg)))
+        self.clouds.append((k, np.array(pts), np.array(bg)))
         self._kept += len(pts) + len(bg) + self.SCAN_COST
-        while self._kept > 2 * self.max_points and len(self._clouds) > 1:
+        while self._kept > 2 * self.max_points and len(self.clouds) > 1:
             self.stride *= 2
-            self._clouds = [c for c in self._clouds if c[0] % self.stride == 0]
-            self._kept = sum(len(c[1]) + len(c[2]) + self.SCAN_COST for c in self._clouds)
+            self.clouds = [c for c in self.clouds if c[0] % self.stride == 0]
+            self._kept = sum(len(c[1]) + len(c[2]) + self.SCAN_COST for c in self.clouds)
 
     def track(self, label) -> np.ndarray:
         """Label's rows ``(x, y, major, minor, yaw, rectangle)``, one per scan it was in."""
@@ -94,11 +94,11 @@ class RunSketch:
 
     def points(self) -> list:
         """The sampled scans' detection arrays (non-empty ones)."""
-        return [c[1] for c in self._clouds if len(c[1])]
+        return [c[1] for c in self.clouds if len(c[1])]
 
     def background(self) -> list:
         """The sampled scans' background arrays (non-empty ones)."""
-        return [c[2] for c in self._clouds if len(c[2])]
+        return [c[2] for c in self.clouds if len(c[2])]
 
 
 def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=200_000,
@@ -131,8 +131,8 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
             sketch.add(r)
     pts, bg = sketch.points(), sketch.background()
     tracks = {lab: sketch.track(lab) for lab in sorted(sketch.tracks)}
-    limits = _limits(pts + [seq[:, :2] for seq in tracks.values()])
-    fig, ax = plt.subplots(figsize=_figure_size(limits), dpi=110)
+    limits = plot_limits(pts + [seq[:, :2] for seq in tracks.values()])
+    fig, ax = plt.subplots(figsize=figure_size(limits), dpi=110)
     if fov is not None:
         _sensor(ax, *fov)
     if bg:
@@ -176,7 +176,7 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
     plt.close(fig)
 
 
-def _limits(chunks):
+def plot_limits(chunks):
     """``(lo, hi)`` corners of the view around the points and track centres (0.5 and 99.5
     percentiles, 1 m margin), the sensor at the origin kept in view, half a metre from the
     edge at least, on every side (a scanner looking backwards sees negative x only);
@@ -197,7 +197,7 @@ FIGURE_SIDE_MIN = 4.0
 FIGURE_FRAME = (1.2, 1.3)        # inches of labels and title around the axes (w, h)
 
 
-def _figure_size(limits):
+def figure_size(limits):
     """
     Figure size for the view ``limits`` drawn at equal scale: 10 x 8 inches for a view
     within a factor of two of that box's proportions, else the long side stretched (to

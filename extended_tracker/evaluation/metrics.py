@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .ggiw import sqrtm_spd2
+from ..filter.algebra2 import sqrtm_spd2
 
 
 def gw_distance(m1, X1, m2, X2) -> np.ndarray:

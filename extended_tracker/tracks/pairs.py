@@ -1,0 +1,117 @@
+"""Leg pairs: two labels that stay together as parts of one object become one track."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..config import TrackerConfig
+from ..filter.cardinality import thin_cardinality
+from ..filter.mixture import Mixture
+from ..filter.reduction import join_parts
+from ..filter.state import FilterState
+from .estimates import Estimates
+from .record import NO_LABELS, TrackRecord
+
+
+def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: TrackerConfig):
+    """
+    Make one track of two extracted labels that have stayed together as parts of one
+    object (a walker's two legs).
+
+    Two extracted labels are a candidate pair when one of them is part-sized (semi-major
+    axis at most ``reduction.pair_semi_axis``), their centres are within
+    ``reduction.pair_distance`` and their velocities differ by at most
+    ``reduction.pair_speed`` (nearest pairs first, one to one). A pair that has been one
+    in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
+    heaviest components become one (:func:`join_parts`) under the senior label (reported
+    in more scans in a row; then the smaller label) and the other label's components are
+    dropped. The junior label leaves the estimates, the report record and (in
+    :func:`identity.remember_shown`) the shown record. The junior of a pair still forming
+    is returned too: a label never shown waits to be shown while its pair forms
+    (:func:`manage.manage_tracks`), so a part born beside its object is joined before it
+    is ever shown, also when the pair forms a scan or two after its birth. In CPHD mode the
+    cardinality pmf loses the dropped weight (:func:`cardinality.thin_cardinality`). The
+    senior's estimate this scan is as extracted; the next scan starts from the joined
+    component.
+
+    ``record``'s report must be ``est``'s (:func:`identity.record_reports`). Returns
+    the filter state, the record, the estimates, the junior labels joined (ascending)
+    and the juniors of the pairs still forming.
+
+    Notes
+    -----
+    A scanner at leg height sees a walker as two legs. The filter often tracks each leg
+    on its own: sub-partitioning then keeps them apart, since it splits a cell among the
+    confident tracks that gate it (which is what keeps two people apart). A walker
+    tracked as one ellipse is split again when a wide stride puts its legs in cells of
+    their own: the far leg is born anew next to it. A walker's legs stay within about
+    0.6 m of each other, and one swings at up to twice the walking speed while the other
+    stands. Pairing leg-sized reports into one report scan by scan, without a record,
+    made the report change label whenever the stride took the legs apart.
+    """
+    rc = cfg.reduction
+    joined = forming = NO_LABELS
+    pairs, runs = np.zeros((0, 2), np.int64), NO_LABELS
+    if len(est) > 1:
+        semi = est.axes()[0]
+        i, j = np.triu_indices(len(est), 1)
+        d = est.m[i, :2] - est.m[j, :2]
+        dv = est.m[i, 2:] - est.m[j, 2:]
+        d2 = np.sum(d * d, axis=1)
+        ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
+              & (d2 <= rc.pair_distance ** 2)
+              & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
+        taken, rows = set(), []
+        for k in ok[d2[ok].argsort(kind='stable')].tolist():
+            if i[k] not in taken and j[k] not in taken:
+                taken.update((i[k], j[k]))
+                rows.append((i[k], j[k]))
+        rows = np.array(rows, dtype=np.int64).reshape(-1, 2)
+        pairs = est.label[rows]                        # labels ascending: smaller first
+        runs = np.ones(len(rows), np.int64)
+        for n, (a, b) in enumerate(pairs.tolist()):
+            was = ((record.pairs[:, 0] == a) & (record.pairs[:, 1] == b)).nonzero()[0]
+            if len(was):
+                runs[n] += record.pair_runs[was[0]]
+        # senior first in each row: reported in more scans in a row, then the smaller label
+        swap = record.reported_scans[rows[:, 1]] > record.reported_scans[rows[:, 0]]
+        rows[swap] = rows[swap][:, ::-1]
+        ready = runs >= rc.pair_scans
+        forming = est.label[rows[~ready, 1]]
+        if np.any(ready):
+            filt, record, est, joined = _join(filt, record, est, rows[ready], cfg)
+            pairs, runs = pairs[~ready], runs[~ready]
+    return filt, replace(record, pairs=pairs, pair_runs=runs), est, joined, forming
+
+
+def _join(filt: FilterState, record: TrackRecord, est: Estimates, rows: np.ndarray,
+          cfg: TrackerConfig):
+    """Join the labels of each pair of ``est`` rows (see :func:`join_pairs`)."""
+    mix = filt.mixture
+    order, is_head, _ = mix.by_label()
+    labels, _, weight = mix.per_label()
+    heads = order[is_head]
+    drop = np.zeros(len(mix), dtype=bool)
+    joined, junior_rows, removed = [], [], 0.0
+    for a, b in rows.tolist():                         # the senior first
+        at = labels.searchsorted(est.label[[a, b]])
+        w = weight[at]
+        joined.append(join_parts(mix, heads[at], w, int(est.label[a])))
+        drop |= (mix.label == est.label[a]) | (mix.label == est.label[b])
+        junior_rows.append(b)
+        removed += float(w.sum() - w.max())
+    log_card = filt.log_card
+    if cfg.model.mode == 'cphd':
+        log_card = thin_cardinality(log_card, removed)
+    keep = np.ones(len(est), dtype=bool)
+    keep[junior_rows] = False
+    filt = replace(filt, mixture=Mixture.concat([mix.take(~drop)] + joined), log_card=log_card)
+    record = replace(record, reported=record.reported[keep],
+                     reported_scans=record.reported_scans[keep],
+                     reported_origin=record.reported_origin[keep],
+                     reported_travel=record.reported_travel[keep],
+                     reported_size=record.reported_size[keep],
+                     reported_hits=record.reported_hits[keep])
+    return filt, record, est.take(keep), np.sort(est.label[~keep])
