@@ -1,7 +1,7 @@
-"""The README's cross-references lead to something that is there."""
+"""The README's cross-references and links lead to something that is there."""
 
-import re
 from pathlib import Path
+import re
 
 README = Path(__file__).resolve().parents[1] / 'README.md'
 
@@ -31,9 +31,16 @@ def dangling(text: str) -> list[str]:
 
 
 def test_every_section_the_readme_points_to_is_there():
+    assert dangling(README.read_text()) == []
+
+
+def test_every_file_the_readme_links_to_is_there():
     text = README.read_text()
-    assert len(references(text)) >= 5                 # the pattern still finds them
-    assert dangling(text) == []
+    links = re.findall(r'\]\(([^)#]+)\)', text)
+    assert 'doc/model.md' in links and 'doc/demo.png' in links
+    missing = [link for link in links
+               if '://' not in link and not (README.parent / link).exists()]
+    assert missing == []
 
 
 def test_a_reference_to_a_missing_section_is_found():
