@@ -57,7 +57,7 @@ def reference_ms(reps: int = 15) -> float:
         t0 = time.perf_counter()
         for _ in range(100):
             c = np.exp(a - b)
-            s = np.sum(c)
+            s = np.add.reduce(c)     # the yardstick's fixed workload: never change it
             m = np.maximum(a, b)
             order = m.argsort()
             d = c[order] * s

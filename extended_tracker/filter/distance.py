@@ -224,6 +224,6 @@ def _roots(parent: np.ndarray) -> np.ndarray:
     labels = parent
     while True:
         nxt = labels[labels]
-        if np.all(nxt == labels):
+        if (nxt == labels).all():
             return labels
         labels = nxt

@@ -266,10 +266,12 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     if hidden is not None:
         h = hidden[comp]
         S = S + (h * h)[:, None, None] * X
-    X_half = sqrtm_spd2(X)
-    S_inv = inv2(S)
-    S_ihalf = inv2(sqrtm_spd2(S))
-    Y_ihalf = inv2(sqrtm_spd2(Y))
+    # the 2x2 closed forms batched over every pair and every matrix they are needed of
+    k = len(n)
+    roots = sqrtm_spd2(np.concatenate([X, S, Y]))                  # X^1/2, S^1/2, Y^1/2
+    X_half = roots[:k]
+    inverses = inv2(np.concatenate([S, roots[k:]]))                # S^-1, S^-1/2, Y^-1/2
+    S_inv, S_ihalf, Y_ihalf = inverses[:k], inverses[k:2 * k], inverses[2 * k:]
     PHt = P[:, :, :2]                                  # P H^T, (k, 4, 2)
     K = PHt @ S_inv                                    # (k, 4, 2)
     eps = zbar - m[:, :2]
@@ -286,15 +288,16 @@ def update_pairs(mix: Mixture, comp: np.ndarray, stats: CellStats, cell: np.ndar
     V_new = symmetrize(V + N_hat + Z_hat)
 
     beta_eff = beta if rate_scale is None else beta / f      # f = 1: beta as it is
-    log_lik = _pair_log_likelihood(n, alpha, beta_eff, v, V, v_new, V_new, X, Y, S)
+    log_lik = _pair_log_likelihood(n, alpha, beta_eff, v, v_new, logdet_spd2(
+        np.concatenate([V, V_new, X, Y, S])).reshape(5, k))
     return PairUpdate(log_lik, alpha + n, beta + f, m_new, P_new, v_new, V_new)
 
 
-def _pair_log_likelihood(n, alpha, beta_eff, v, V, v_new, V_new, X, Y, S):
-    """``log l_W`` of section 3 of ``doc/model.md``, term by term, for each pair."""
+def _pair_log_likelihood(n, alpha, beta_eff, v, v_new, logdets):
+    """``log l_W`` of section 3 of ``doc/model.md``, term by term, for each pair;
+    ``logdets`` holds the log-determinants of ``V, V', X, Y, S`` row by row."""
     alpha_new = alpha + n
-    logdet_V, logdet_Vn = logdet_spd2(V), logdet_spd2(V_new)
-    logdet_X, logdet_Y, logdet_S = logdet_spd2(X), logdet_spd2(Y), logdet_spd2(S)
+    logdet_V, logdet_Vn, logdet_X, logdet_Y, logdet_S = logdets
     h0, h1 = 0.5 * (v - (D + 1)), 0.5 * (v_new - (D + 1))
     # log Gamma_2(a) = (1/2) log pi + log Gamma(a) + log Gamma(a - 1/2)
     lg2_new = _HALF_LOG_PI + gammaln(h1) + gammaln(h1 - 0.5)

@@ -37,7 +37,7 @@ def held_p_d(mix: Mixture, confirmed, p_d: np.ndarray, shadowed: np.ndarray,
     the outline, is most often the occluder in front of a hidden object, and holds
     nothing back.
     """
-    if confirmed is None or not np.any(shadowed) or not len(confirmed):
+    if confirmed is None or not shadowed.any() or not len(confirmed):
         return p_d, np.zeros(len(p_d), dtype=bool)
     held = shadowed & np.isin(mix.label, confirmed)
     rows = held[comp].nonzero()[0]                     # the held components' pairs

@@ -67,7 +67,7 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
     for _ in range(iters):
         dx, dy = x_col - cx, y_col - cy
         new = (dx * dx + dy * dy).argmin(axis=1)
-        if _ and np.all(new == labels):       # not array_equal's wrapper
+        if _ and (new == labels).all():
             break
         labels = new
         # each centre moves to the mean of its points; an empty cluster's centre stays
@@ -75,7 +75,7 @@ def kmeans_pp(points: np.ndarray, k: int, seed: int = 0, iters: int = 20,
         sx = np.bincount(labels, weights=x, minlength=k)
         sy = np.bincount(labels, weights=y, minlength=k)
         filled = count > 0
-        if np.all(filled):
+        if filled.all():
             cx, cy = sx / count, sy / count
         else:
             cx[filled] = sx[filled] / count[filled]

@@ -5,7 +5,7 @@ The labelled GGIW mixture: a struct of arrays with a leading component axis
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -61,7 +61,8 @@ class Mixture:
 
     def with_weights(self, w) -> 'Mixture':
         """Return a copy with new weights."""
-        return replace(self, w=np.asarray(w, dtype=float))
+        return Mixture(np.asarray(w, dtype=float), self.alpha, self.beta, self.m, self.P,
+                       self.v, self.V, self.label)
 
     @staticmethod
     def empty() -> 'Mixture':
@@ -137,7 +138,7 @@ class Mixture:
     def _by_label(self):
         order = self.label.argsort(kind='stable')
         lab = self.label[order]
-        if np.all(lab[1:] != lab[:-1]):
+        if (lab[1:] != lab[:-1]).all():
             # one component a label (a predicted or reduced mixture, most scans): each is
             # its label's head, and the weights order nothing
             n = len(order)

@@ -113,7 +113,7 @@ class PartitionSet:
         """
         counts = np.bincount(finest, minlength=len(finest))
         small = (counts >= 2) & (counts <= split_small)
-        if not np.any(small):
+        if not small.any():
             return
         # the finest partition's cells once (the entries are shared, so a cell one variant
         # adds is known to the next); each variant is them with one cell's returns alone
@@ -336,7 +336,7 @@ def distinct_with_lonely(partitions, cells, size, lonely, m: int) -> list:
     so a collision of sums can never drop a partition that differs.
     """
     sizes = np.fromiter(map(len, partitions), dtype=np.int64, count=len(partitions))
-    if len(partitions) < 2 or not np.all(sizes):
+    if len(partitions) < 2 or not sizes.all():
         return partitions
     n_cells = len(cells)
     member_sum = np.add.reduceat(mix64(np.concatenate(cells)),          # size: returns

@@ -116,7 +116,7 @@ def solve_nu(target, lo, hi, start, iters=60):
     below, above_hi = ends[:k] <= 0.0, ends[k:] >= 0.0
     out = np.where(below, lo, np.where(above_hi, hi, 0.0))
     free = ~(below | above_hi)
-    if not np.any(free):
+    if not free.any():
         return out
     t, a, b = target[free], lo[free], hi[free]
     shift = _LOG4 - t
@@ -135,9 +135,9 @@ def solve_nu(target, lo, hi, start, iters=60):
             # inclusive: at the root (val == 0) the step stays on an end of the bracket,
             # and bisecting from there wanders off the root for a dozen steps
             inside = (nxt >= a) & (nxt <= b)
-            if not np.all(inside):                        # bisect where it would leave
+            if not inside.all():                        # bisect where it would leave
                 nxt = np.where(inside, nxt, 0.5 * (a + b))
-            done = np.all(np.abs(nxt - nu) <= SOLVE_RTOL * nu)
+            done = (np.abs(nxt - nu) <= SOLVE_RTOL * nu).all()
             nu = nxt
             if done:
                 break
@@ -246,8 +246,8 @@ def merge_groups(mix: Mixture, groups: list) -> Mixture:
         new = a - step
         positive = new > 0.0
         # halved where the step would leave a > 0 (rare: the where only then)
-        a = new if np.all(positive) else np.where(positive, new, a * 0.5)
-        if np.all(np.abs(step) <= SOLVE_RTOL * a):
+        a = new if positive.all() else np.where(positive, new, a * 0.5)
+        if (np.abs(step) <= SOLVE_RTOL * a).all():
             break
     b = a / mean
     # inverse Wishart
@@ -297,7 +297,7 @@ def reduce_mixture(mix: Mixture, prune_weight: float, merge_distance: float,
     # a weight of 0 (or below the smallest normal double) is pruned even with
     # prune_weight 0: a group of such members has no weight to match moments by
     keep = mix.w >= max(prune_weight, _TINY)
-    if not np.all(keep):
+    if not keep.all():
         mix = mix.take(keep)
     if not len(mix):
         return mix, 0

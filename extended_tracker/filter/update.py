@@ -139,15 +139,18 @@ def gates(mix: Mixture, cfg: TrackerConfig, min_weight: float = 0.5):
     if not len(mix):
         return None, None
     R = sensor_noise(cfg)
-    gate_inv = inv2(gate_covariance(mix, cfg.model.rho, R))
+    G = gate_covariance(mix, cfg.model.rho, R)
     order, is_head, _ = mix.by_label()
     best = order[is_head]
     best = best[mix.w[best] >= min_weight]
     if not len(best):
-        return gate_inv, None
-    return gate_inv, {
+        return inv2(G), None
+    # both sets of 2x2 matrices inverted in one batch
+    n = len(mix)
+    inverses = inv2(np.concatenate([G, mix.P[best][:, :2, :2] + mix.expected_extent(best) + R]))
+    return inverses[:n], {
         'centre': mix.m[best][:, :2],
-        'gate_inv': inv2(mix.P[best][:, :2, :2] + mix.expected_extent(best) + R),
+        'gate_inv': inverses[n:],
         'gate': gate_threshold(cfg),
         'rate': mix.expected_rate()[best],
     }
@@ -182,7 +185,7 @@ def pair_updates(mix: Mixture, points: np.ndarray, cfg: TrackerConfig, sensor: S
 
     """
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    if not np.all(np.isfinite(points)):
+    if not np.isfinite(points).all():
         bad = int((~np.isfinite(points).all(axis=1)).sum())
         raise ValueError(f'pair_updates: detections must be finite; {bad} of '
                          f'{len(points)} rows are not')
@@ -311,7 +314,7 @@ def _lonely_cells(cell_size: np.ndarray, log_g: np.ndarray, cfg: TrackerConfig,
     if not (cfg.birth.min_points > 2 or refused_births):
         return None
     lonely = (cell_size > 1) & ~np.isfinite(log_g).any(axis=0)
-    return lonely if np.any(lonely) else None
+    return lonely if lonely.any() else None
 
 
 def _detection_log_likelihoods(mix: Mixture, pairs: Pairs, kept: _Kept, cfg: TrackerConfig,

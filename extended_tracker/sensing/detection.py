@@ -190,7 +190,7 @@ def sparse_births(births, scan: ScanPoints, cfg) -> np.ndarray:
                                                   births.P[maybe], 0.0, 0.0)
     at_sensor = _holds_sensor(births.m[maybe], extent[maybe])
     low = _expects_too_few(rate[maybe], half, step, det.min_fill)
-    if np.any(low):
+    if low.any():
         rows = low.nonzero()[0]
         plain, _ = visible_fraction(scan.in_scan_frame(bearing[rows]), half[rows],
                                      r_near[rows], scan, scan.ranges, det.shadow_margin,

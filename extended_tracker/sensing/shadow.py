@@ -135,7 +135,7 @@ def _beam_intervals(ang: np.ndarray, bearing, half_angle):
     lo = ang.searchsorted(bearing - half_angle, side='left')
     hi = ang.searchsorted(bearing + half_angle, side='right')
     empty = hi <= lo
-    if np.any(empty):
+    if empty.any():
         e = empty.nonzero()[0]
         up = np.minimum(lo[e], len(ang) - 1)
         down = np.maximum(up - 1, 0)
@@ -261,7 +261,7 @@ def visible_centroid_offset(X: np.ndarray, u: np.ndarray, shift: np.ndarray) -> 
     line, where the side's thin extent holds it to centimetres, and the track's velocity
     turned off the car's heading until the gate let go of its returns.
     """
-    if not np.any(shift != 0.0):
+    if not (shift != 0.0).any():
         # nothing part hidden (most scans): the offsets are all 0 without the products
         return np.zeros((len(shift), 2))
     Xu = np.einsum('kij,kj->ki', X, u)
@@ -299,7 +299,7 @@ def _estimate_shadow(bearing, half, r_near, label, occluders, scan, det):
     # whose interval covers the beam
     for i in range(n):
         others = (o_label != label[i]) & (o_far < r_near[i])
-        if not np.any(others):
+        if not others.any():
             blocking = np.full(len(scan.angles), np.inf)
         else:
             oi = others.nonzero()[0]

@@ -158,7 +158,7 @@ def _gap_times(seconds: float) -> np.ndarray:
 
 def _gap(ca, ra, cb, rb) -> float:
     gap = np.linalg.norm(ca - cb, axis=1) - (ra + rb)
-    return float(np.nanmin(gap)) if np.any(np.isfinite(gap)) else math.inf
+    return float(np.nanmin(gap)) if np.isfinite(gap).any() else math.inf
 
 
 def _ray_ellipse(d, c, X):

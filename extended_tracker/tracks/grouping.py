@@ -132,7 +132,7 @@ def _touching(est: Estimates, seg, u, major, ends, gap: float, speed: float):
     dv = _norm(est.m[seg, None, 2:] - est.m[None, seg, 2:], 2)
     near = (d <= gap) & (dv <= speed)
     np.fill_diagonal(near, False)
-    if not np.any(near):
+    if not near.any():
         return None
     parent = list(range(s))
     for i, j in zip(*near.nonzero()):

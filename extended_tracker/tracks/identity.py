@@ -180,7 +180,7 @@ def hand_over(record: TrackRecord, filt: FilterState, est: Estimates, cfg: Track
         is_y, is_a = mix.label == y, mix.label == a
         label[is_y], label[is_a] = a, y
         est_label[est.label == y] = a
-        if not np.any(rec == a):
+        if not (rec == a).any():
             rec[rec == y] = a
     order = est_label.argsort(kind='stable')
     return (replace(filt, mixture=replace(mix, label=label)),
@@ -191,7 +191,7 @@ def record_reports(record: TrackRecord, est: Estimates) -> TrackRecord:
     """Carry per-label report counts, scans with returns, first positions and distances
     travelled."""
     has = est.num_detections > 0
-    if len(est) == len(record.reported) and np.all(est.label == record.reported):
+    if len(est) == len(record.reported) and (est.label == record.reported).all():
         # the labels of the last report again (most scans): row for row, nothing new
         travel = _norm(est.m[:, :2] - record.reported_origin, 1)
         # only where returns placed it: a coasting label drifts with its predicted velocity
@@ -244,7 +244,7 @@ def remember_shown(record: TrackRecord, filt: FilterState, shown: Estimates, dt:
             and lab not in gone]
     clock = tuple((ago + dt, lab) for ago, lab in record.label_clock if ago + dt <= handover_time)
     clock += ((0.0, first_label),)
-    if not keep and np.all(shown.label[1:] > shown.label[:-1]):
+    if not keep and (shown.label[1:] > shown.label[:-1]).all():
         # every label of the record is shown again or gone (most scans): the record is this
         # scan's, its labels ascending already (as the estimates come)
         return replace(record, shown=shown.label.copy(), shown_pos=shown.m[:, :2].copy(),

@@ -75,7 +75,7 @@ def fuse_duplicate_labels(mix: Mixture, merge_distance: float, fuse_weight: floa
     d2 = np.einsum('ijk,ikl,ijl->ij', e, inv_spread, e)    # in head i's metric
     close = (np.maximum(d2, d2.T) <= merge_distance)
     np.fill_diagonal(close, False)
-    if not np.any(close):
+    if not close.any():
         return mix, 0
     scans = np.zeros(len(cand), dtype=np.int64)
     if reported is not None and len(reported):
@@ -120,7 +120,7 @@ def split_labels(mix: Mixture, split_weight: float, merge_distance: float, next_
     if not len(mix):
         return mix, next_label
     order, is_head, group = mix.by_label()
-    if np.all(is_head):
+    if is_head.all():
         return mix, next_label                         # one component a label (most scans)
     heads = order[is_head]
     pos = mix.m[:, :2]
@@ -128,7 +128,7 @@ def split_labels(mix: Mixture, split_weight: float, merge_distance: float, next_
     d2 = np.einsum('ki,kij,kj->k', e, _spread_inv(mix, heads)[group], e)
     far = np.zeros(len(mix), dtype=bool)
     far[order] = (d2 > merge_distance) & ~is_head
-    if not np.any(far):
+    if not far.any():
         return mix, next_label
     heavy = far & (mix.w >= split_weight)
     label = mix.label.copy()

@@ -80,7 +80,7 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
         rows[swap] = rows[swap][:, ::-1]
         ready = runs >= rc.pair_scans
         forming = est.label[rows[~ready, 1]]
-        if np.any(ready):
+        if ready.any():
             filt, record, est, joined = _join(filt, record, est, rows[ready], cfg)
             pairs, runs = pairs[~ready], runs[~ready]
     return filt, replace(record, pairs=pairs, pair_runs=runs), est, joined, forming
