@@ -25,7 +25,9 @@ estimates and event ``malformed_scan``, the reason in ``result.error``. The pipe
 onto the first scan's ``frame_id``; a scan from another frame is answered the same way
 with event ``foreign_frame``. A scan that no partition of its returns can explain (every
 one holds more objects than ``model.n_max``) updates nothing: the tracks are predicted
-through it, event ``unexplained_scan``, the reason in ``result.error``.
+through it, event ``unexplained_scan``, the reason in ``result.error``. A scan whose beams
+differ from those the background was learned on (another count, reversed, finer) is used
+with the background re-mapped to its beams by angle, event ``scan_layout_changed``.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ from .tracks.manage import manage_tracks
 from .tracks.record import find_sorted, TrackRecord
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
-          'unexplained_scan', 'zero_stamp')
+          'unexplained_scan', 'zero_stamp', 'scan_layout_changed')
 
 
 @dataclass(frozen=True)
@@ -157,6 +159,10 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
         return state, scan_in
     sp, now, frame, dt, filt, tracks, event, error = scan_in
     diag = _scan_counts(sp)
+    if cfg.background.enabled and state.background is not None and len(sp.angles) \
+            and not state.background.matches(sp):
+        event, error = _with_event(event, error, 'scan_layout_changed', _layout_change(
+            state.background, sp))
     background, points, bg_points, learned, moved = remove_background(
         state, tracks, sp, dt, cfg, diag)
     pred = predict_state(filt, dt, cfg)
@@ -164,7 +170,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     pred, vis = detect(pred, sp, cfg, diag)
     filt, tracks, estimates = update_tracks(pred, tracks, points, sp, vis, cfg, dt, diag)
     if diag.unexplained:
-        event, error = _unexplained(event, error, len(points), cfg)
+        event, error = _with_event(event, error, 'unexplained_scan', (
+            f'no partition of the {len(points)} returns is possible (more objects than '
+            f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it'))
     new_state = replace(state, filter=filt, tracks=tracks, background=background,
                         last_stamp_ns=now, frame_id=frame, last_estimates=estimates,
                         moved=moved, scans=state.scans + 1, elapsed=state.elapsed + dt)
@@ -288,7 +296,7 @@ def drop_absorbed(pred: FilterState, learned: np.ndarray, points: np.ndarray,
     if not len(learned) or not len(mix) or diag.warmup:
         return pred
     on_bg = absorbed(mix, learned, points, cfg) & (mix.label < first_new)
-    if not np.any(on_bg):
+    if not on_bg.any():
         return pred
     diag.absorbed = int(np.count_nonzero(on_bg))
     return replace(pred, mixture=mix.take(~on_bg),
@@ -326,7 +334,7 @@ def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig,
     if vis.outside is None:
         return pred, vis
     drop = vis.outside | vis.at_sensor | vis.sparse
-    if not np.any(drop):
+    if not drop.any():
         return pred, vis
     at_sensor = vis.at_sensor & ~vis.outside
     sparse = vis.sparse & ~vis.outside & ~vis.at_sensor
@@ -360,13 +368,18 @@ def update_tracks(pred: FilterState, tracks: TrackRecord, points: np.ndarray,
     return manage_tracks(filt, tracks, facts, cfg, dt, pred.next_label, diag)
 
 
-def _unexplained(event, error, n_points: int, cfg: TrackerConfig):
-    """The event and reason of a scan no partition explains (a restart outranks it; a zero
-    stamp, every scan from some drivers, does not)."""
-    event = 'unexplained_scan' if event in (None, 'zero_stamp') else event
-    why = (f'no partition of the {n_points} returns is possible (more objects than '
-           f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
+def _with_event(event, error, new_event: str, why: str):
+    """The event and reason of a scan that also met ``new_event`` (a restart outranks it;
+    a zero stamp, every scan from some drivers, does not); both reasons are kept."""
+    event = new_event if event in (None, 'zero_stamp') else event
     return event, why if error is None else f'{error}; {why}'
+
+
+def _layout_change(background, sp: ScanPoints) -> str:
+    """The reason of event ``scan_layout_changed``."""
+    return (f'{len(sp.angles)} beams over [{sp.angle_lo:.4f}, {sp.angle_hi:.4f}] rad where '
+            f'the background was learned on {len(background.angles)}: what was learned is '
+            f're-mapped to the new beams by angle')
 
 
 def _card_of(state: PipelineState):

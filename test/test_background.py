@@ -685,10 +685,11 @@ def test_a_person_stepping_into_an_open_doorway_does_not_continue_the_wall():
     assert np.isnan(state.background[10:21]).all()
 
 
-def test_a_scan_at_other_angles_starts_the_background_afresh():
-    """The background is per beam: a scan with as many beams at other angles (a scanner
-    turned by half a beam) learns from nothing; the same angles again keep what was
-    learned."""
+def test_a_scan_at_other_angles_takes_the_nearest_beams_background():
+    """The background is per beam and re-mapped by angle when the beams change: a scan
+    whose beams lie within half a spacing of the learned ones (a scanner turned by half a
+    beam) takes their background; beams beyond what was learned (the field of view
+    turned away by 31 beams) start unknown. The same angles again keep what was learned."""
     cfg = from_dict({}).background
     spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=31)
     (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
@@ -700,10 +701,15 @@ def test_a_scan_at_other_angles_starts_the_background_afresh():
     assert not keep.any() and np.allclose(state.background, 4.0)
     same, keep = update_background(state, scan_to_points(scan), 0.1, cfg, none)
     assert not keep.any() and np.allclose(same.background, 4.0)
-    scan.angle_min += 0.5 * scan.angle_increment
-    scan.angle_max += 0.5 * scan.angle_increment
-    turned, keep = update_background(state, scan_to_points(scan), 0.1, cfg, none)
-    assert keep.all() and np.isnan(turned.background).all()
+    half = replace(scan, angle_min=scan.angle_min + 0.5 * scan.angle_increment,
+                   angle_max=scan.angle_max + 0.5 * scan.angle_increment)
+    turned, keep = update_background(state, scan_to_points(half), 0.1, cfg, none)
+    assert not keep.any() and np.allclose(turned.background, 4.0)
+    away = replace(scan, angle_min=scan.angle_min + 31 * scan.angle_increment,
+                   angle_max=scan.angle_max + 31 * scan.angle_increment)
+    elsewhere, keep = update_background(state, scan_to_points(away), 0.1, cfg, none)
+    assert keep.all() and np.isnan(elsewhere.background).all()
+
 
 def _continues_ring_by_ring(r, b, which, reach, margin, wrap):
     """The plain reading of ``continues_surface``: one ring of neighbours a round, beam by beam."""
@@ -814,3 +820,47 @@ def test_the_region_birth_of_a_scan_is_never_absorbed():
             absorbed += 1
             assert first_new in state.filter.mixture.label
     assert absorbed >= 2
+
+
+def _relaid(scan, kind):
+    """``scan`` with another beam layout over the same field of view: two beams short,
+    listed the other way round, or four times finer (the ranges of the nearest beam)."""
+    import copy
+
+    s = copy.deepcopy(scan)
+    r = np.asarray(scan.ranges)
+    if kind == 'two short':
+        s.ranges = r[:-2].copy()
+        s.angle_max = scan.angle_max - 2 * scan.angle_increment
+    elif kind == 'reversed':
+        s.ranges = r[::-1].copy()
+        s.angle_min, s.angle_max = scan.angle_max, scan.angle_min
+        s.angle_increment = -scan.angle_increment
+    else:
+        s.ranges = np.repeat(r, 4)[:4 * len(r) - 3].copy()
+        s.angle_increment = scan.angle_increment / 4
+    return s
+
+
+@pytest.mark.parametrize('kind', ['two short', 'reversed', 'four times finer'])
+def test_a_scan_with_another_beam_layout_keeps_the_learned_background(kind):
+    """A driver that changes the beam count now and then: the scan is said
+    (``scan_layout_changed``, with the counts), what was learned is re-mapped to its beams
+    by angle, and the walls stay background: no track appears, the person keeps an id.
+    (It used to throw the background away without a word: walls became tracks.)"""
+    cfg = from_dict({})
+    data = simulate(walls_scene(), 8.0, seed=0)
+    state = PipelineState.initial(cfg)
+    for scan, _ in data[:60]:
+        state, res = step(state, scan, cfg)
+    before = res.estimates.label.tolist()
+    scan, truth = data[60]
+    state, res = step(state, _relaid(scan, kind), cfg)
+    assert res.event == 'scan_layout_changed'
+    assert 'beams over' in res.error and f'learned on {len(scan.ranges)}' in res.error
+    assert res.diagnostics['background_dropped'] > 0.8 * res.diagnostics['detections']
+    labels = []
+    for scan, _ in data[61:75]:
+        state, res = step(state, scan, cfg)
+        labels.append(res.estimates.label.tolist())
+    assert all(lab == before for lab in labels), (before, labels)

@@ -6,6 +6,7 @@ SingleThreadedExecutor and bounded spins (DDS on loopback, see conftest).
 
 import copy
 from pathlib import Path
+import re
 import time
 
 import numpy as np
@@ -1025,29 +1026,109 @@ class RecordingLogger:
         return [(text, kwargs) for lev, text, kwargs in self.lines if lev == level]
 
 
-def test_an_event_is_logged_once_then_summarised_and_a_bug_at_error(harness, monkeypatch):
-    """The first of a kind in full with what follows, the later ones throttled to one
-    line every 10 s with the running count; a failure to publish, a bug, at ERROR."""
+def test_an_event_is_logged_once_a_kind_of_reason_then_summarised_and_a_bug_at_error(
+        harness, monkeypatch):
+    """The first of a kind in full; another kind of reason of the same event at once, not
+    lost in a 10 s window; the rest counted and said by the periodic summary, whenever it
+    comes, with its last reason (a malformed scan's reason is also in the diagnostics); a
+    failure to publish, a bug, at ERROR."""
     import extended_tracker.ros.node as node_mod
 
     rec = RecordingLogger()
     monkeypatch.setattr(harness.node, 'get_logger', lambda: rec)
     data = simulate(tutorial_scene(), 0.5, seed=0)
     bad = zero_increment(data[0][0])
-    for _ in range(3):
-        harness.send(bad)
-    (first, kw1), (second, kw2), (third, kw3) = rec.at('warning')
-    assert first.startswith('malformed_scan: ') and kw1 == {}
-    assert first.endswith('(counted; further ones are summarised every 10 s)')
-    assert second.startswith('malformed_scan: 2 so far; last: ')
-    assert third.startswith('malformed_scan: 3 so far; last: ')
-    assert kw2 == kw3 == {'throttle_duration_sec': 10.0}
-    assert rec.at('error') == []
+    short = copy.deepcopy(ros_scan(data[1][0]))
+    short.ranges = short.ranges[:-10]                        # a truncated scan
+    for scan in (bad, bad, short, bad):
+        harness.send(scan)
+    (first, _), (second, _) = rec.at('warning')
+    assert first == ('malformed_scan: angle_increment must not be zero (counted; further '
+                     'ones are summarised every 10 s)')
+    assert second.startswith('malformed_scan: len(ranges) = ') and second.endswith(
+        '(3 so far)')
+    status = harness.diagnostics[-1].status[0]
+    values = {kv.key: kv.value for kv in status.values}
+    assert status.message == 'malformed_scan'
+    assert values['reason'] == values['last_reason_malformed_scan'] == (
+        'angle_increment must not be zero')
+    assert values['count_malformed_scan'] == '4'
+    harness.node.log_summary()
+    (summary, _), = rec.at('warning')[2:]
+    assert summary == ('malformed_scan: 2 more since the last summary (4 in all); last: '
+                       'angle_increment must not be zero')
+    harness.node.log_summary()                               # nothing new: nothing said
+    assert len(rec.at('warning')) == 3 and rec.at('error') == []
     fail_on_call(monkeypatch, node_mod, 'markers_data', 1, ValueError('a bug'))
     harness.expect_markers = False                        # that scan gets none
     harness.send(ros_scan(data[1][0]))
     (text, _), = rec.at('error')
     assert text.startswith("internal_error: publishing the estimates failed: ValueError('a bug')")
+
+
+def test_the_summary_runs_on_a_steady_timer_every_ten_seconds(harness):
+    """What is counted and not logged is said every SUMMARY_PERIOD_S by a timer on the
+    steady clock, not only when a later event of the same kind happens to come."""
+    from rclpy.clock import ClockType
+
+    import extended_tracker.ros.node as node_mod
+
+    timer = harness.node.summary_timer
+    assert node_mod.SUMMARY_PERIOD_S == 10.0 and timer.timer_period_ns == 10 * 10**9
+    assert timer.clock.clock_type == ClockType.STEADY_TIME
+    assert timer.callback == harness.node.log_summary
+
+
+def test_scans_missing_between_stamps_are_counted_and_said(harness, monkeypatch):
+    """Scans that never reach the callback (the subscription queue dropped them in a
+    burst, or the driver did): a step of k scan periods between stamps is k - 1 scans
+    missing, event scans_dropped, and the total in the diagnostics."""
+    rec = RecordingLogger()
+    monkeypatch.setattr(harness.node, 'get_logger', lambda: rec)
+    data = [s for s, _ in simulate(tutorial_scene(), 2.0, seed=0)]
+    for scan in data[:10] + data[13:15]:                  # three missing, then on
+        harness.send(ros_scan(scan))
+    assert harness.node.counts.get('scans_dropped') == 1
+    (text, _), = rec.at('warning')
+    assert text.startswith('scans_dropped: 3 scan(s) missing before the one stamped ')
+    values = {kv.key: kv.value for kv in harness.diagnostics[-1].status[0].values}
+    assert values['scans_dropped'] == '3' and values['count_scans_dropped'] == '1'
+
+
+def test_get_parameters_answers_for_every_name_with_the_list_among_them(harness):
+    """GetParameters for birth.regions (a list of doubles with no default) with other
+    names: rclpy's service answered nothing at all while the list was uninitialised."""
+    from rcl_interfaces.srv import GetParameters
+
+    client = harness.probe.create_client(GetParameters, '/extended_tracker/get_parameters')
+    assert harness.spin_until(client.service_is_ready)
+    future = client.call_async(GetParameters.Request(names=['birth.regions', 'model.n_max']))
+    assert harness.spin_until(future.done)
+    regions, n_max = future.result().values
+    assert list(regions.double_array_value) == [] and n_max.integer_value == 40
+
+
+def test_a_value_out_of_its_range_at_start_up_is_one_clear_error():
+    """-p model.n_max:=1000 or p_survival 1.5 (or such a value in a parameter file): the
+    node refuses in one line with the range, as for a wrong type (rclpy raised its
+    InvalidParameterValueException through the constructor)."""
+    for arg, said in (('model.n_max:=1000', 'model.n_max = 1000 is out of its range '
+                                            '[1, 200]: cardinality pmf truncated'),
+                      ('model.p_survival:=1.5', 'model.p_survival = 1.5 is out of its '
+                                                'range [0, 1]: probability an object')):
+        with pytest.raises(ConfigError, match=re.escape(said)):
+            NodeHarness(args=['--ros-args', '-p', arg])
+
+
+@pytest.mark.slow
+def test_the_process_refuses_an_out_of_range_value_in_one_fatal_line(tmp_path):
+    params = tmp_path / 'params.yaml'
+    params.write_text('extended_tracker:\n  ros__parameters:\n    model:\n'
+                      '      n_max: 1000\n')
+    for done in (_node_until_it_ends('-p', 'model.p_survival:=1.5'),
+                 _node_until_it_ends('--params-file', str(params))):
+        assert done.returncode == 2 and 'Traceback' not in done.stderr, done.stderr
+        assert '[FATAL]' in done.stderr and 'is out of its range' in done.stderr
 
 
 def test_a_failure_on_a_zero_stamped_scan_is_answered_at_its_arrival(harness, monkeypatch):

@@ -56,6 +56,10 @@ def test_deterministic_over_runs():
     (lambda s: setattr(s, 'angle_increment', 0.0), 'angle_increment'),
     (lambda s: setattr(s, 'angle_increment', float('nan')), 'finite'),
     (lambda s: setattr(s, 'ranges', np.ones(5)), 'disagrees'),
+    # an empty ranges array while the angle fields declare the scan's beams (a truncated
+    # message): malformed, not a scan that saw nothing, so the tracks stay
+    (lambda s: setattr(s, 'ranges', np.zeros(0, dtype=np.float32)),
+     'len(ranges) = 0 disagrees'),
     (lambda s: setattr(s, 'range_max', -1.0), 'range limits'),
     (lambda s: setattr(s, 'ranges', None), 'ranges'),
     (lambda s: setattr(s, 'header', None), 'header'),

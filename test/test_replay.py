@@ -1050,3 +1050,50 @@ def test_real_with_a_config_replays_every_bag_with_it_and_one_replay_output_by_n
     assert main(['real', '--data', str(tracks), '--out', str(tmp_path / 'again')]) == 0
     line = capsys.readouterr().out.splitlines()[1]
     assert line.split()[:2] == ['legtracker_positive_1_tracks', '10'], line
+
+
+# nobody, root included, can create a file under /proc: an unwritable place on any machine
+UNWRITABLE = Path('/proc')
+
+
+def test_an_unwritable_plot_or_output_is_refused_before_any_work(tmp_path, capsys,
+                                                                  monkeypatch):
+    """A --plot or an output in a folder that cannot be written: a one-line error that
+    names the path given (not a staging folder), before a scan is read; no bag left to
+    make a rerun refuse."""
+    import extended_tracker.bag.replay as replay_mod
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'in', seconds=0.5)
+    monkeypatch.setattr(replay_mod, 'open_scans', lambda *a: pytest.fail('the bag was read'))
+    plot = UNWRITABLE / 'run.png'
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out'), '--plot',
+                 str(plot)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f'extended-tracker: error: plot {plot}: cannot write there')
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / 'out').exists()
+    out = UNWRITABLE / 'tracks'
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f'extended-tracker: error: cannot write the output {out}: ')
+    assert '.partial' not in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_staging_folder_left_by_a_killed_run_is_removed_and_said(tmp_path, capsys):
+    """A replay killed with SIGKILL cannot clean up its hidden staging folder: the next
+    run into the same output removes it and says so. One of a process still running is
+    another run's, and stays."""
+    from extended_tracker.bag.bagio import stage_path
+    from extended_tracker.cli import main
+
+    write_ros2(tmp_path / 'in', seconds=0.5)
+    gone = subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'],
+                          capture_output=True, text=True, check=True)
+    dead = stage_path(tmp_path / 'out', int(gone.stdout))
+    (dead / 'out').mkdir(parents=True)
+    live = stage_path(tmp_path / 'out', 1)                # init: always running
+    live.mkdir()
+    assert main(['replay', str(tmp_path / 'in'), '-o', str(tmp_path / 'out')]) == 0
+    out = capsys.readouterr().out
+    assert f'removed          {dead} (the staging folder of an earlier run' in out
+    assert not dead.exists() and live.exists() and (tmp_path / 'out').is_dir()

@@ -98,6 +98,9 @@ def test_negative_increment():
 def test_empty_and_all_invalid_scans_give_no_points():
     empty = scan_to_points(make_scan([], angle_min=0.3))
     assert len(empty.points) == 0 and empty.angle_lo == empty.angle_hi == 0.3
+    # but an empty ranges array under angle fields that declare 1081 beams is truncated
+    with pytest.raises(ScanError, match='len.ranges. = 0 disagrees .* 1081.0 beams'):
+        scan_to_points(make_scan([], angle_min=-2.356194, inc=0.004363323, angle_max=2.356194))
     sp = scan_to_points(make_scan([np.nan, np.inf, 0.0]))
     assert len(sp.points) == 0 and sum(sp.masked.values()) == 3
 

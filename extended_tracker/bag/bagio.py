@@ -14,6 +14,7 @@ import os
 from pathlib import Path
 import shutil
 import sys
+import tempfile
 
 from .. import stopping
 from ..errors import BagError
@@ -232,6 +233,54 @@ def open_scans(path, scan_topic: str | None = None):
     return reader, [c for c in scans if c.topic == topic]
 
 
+STAGE_MARK = '.partial-'
+
+
+def stage_path(out: Path, pid: int | None = None) -> Path:
+    """The hidden staging folder of a bag written to ``out`` by process ``pid``."""
+    return out.parent / f'.{out.name}{STAGE_MARK}{os.getpid() if pid is None else pid}'
+
+
+def remove_stale_stages(out: Path) -> list[Path]:
+    """
+    Remove the staging folders of ``out`` that processes no longer running left behind
+    (a replay killed with SIGKILL cannot clean up); return them, for the caller to say.
+    """
+    removed = []
+    for stage in sorted(out.parent.glob(f'.{out.name}{STAGE_MARK}*')):
+        pid = stage.name.rsplit(STAGE_MARK, 1)[1]
+        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+            continue
+        shutil.rmtree(stage, ignore_errors=True)
+        removed.append(stage)
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:             # someone else's process: running
+        return True
+    return True
+
+
+def check_output(out: Path) -> None:
+    """Refuse at once an output bag that exists or whose folder cannot be written in
+    (BagError naming ``out``), before any work that would be lost."""
+    if out.exists():
+        raise BagError(f'output {out} exists; refusing to overwrite it')
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out.parent, prefix=f'.{out.name}.',
+                                         suffix='.probe'):
+            pass
+    except OSError as err:
+        msg = f'cannot write the output {out}: {err.strerror or err}'
+        raise BagError(msg) from err
+
+
 @contextmanager
 def staged_bag(out: Path):
     """
@@ -243,11 +292,22 @@ def staged_bag(out: Path):
     and the finished bag holds ``OUT.mcap``. An exception or an interruption in the
     block removes the staging folder and leaves nothing at ``out``, as does a Ctrl-C or
     SIGTERM that arrived in it (:mod:`stopping`) when its exception was lost on the way.
+    Staging folders that dead processes left are removed first.
+
+    Raises
+    ------
+    BagError
+        When the folder of ``out`` cannot be written (the message names ``out``).
     """
-    stage = out.parent / f'.{out.name}.partial-{os.getpid()}'
-    if stage.exists():
-        shutil.rmtree(stage)
-    stage.mkdir(parents=True)
+    stage = stage_path(out)
+    try:
+        remove_stale_stages(out)
+        if stage.exists():
+            shutil.rmtree(stage)
+        stage.mkdir(parents=True)
+    except OSError as err:
+        msg = f'cannot write the output {out}: {err.strerror or err}'
+        raise BagError(msg) from err
     try:
         yield stage / out.name
         stopping.check()                 # a signal whose exception was lost: not moved

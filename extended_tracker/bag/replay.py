@@ -26,8 +26,8 @@ from ..errors import BagError
 from ..pipeline import PipelineState, step
 from ..report.messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
 from .bagio import (
-    build_message, MARKERS_TYPE, message_typestore, open_scans, scan_data, SCAN_TYPE, staged_bag,
-    TRACKS_TYPE,
+    build_message, check_output, MARKERS_TYPE, message_typestore, open_scans, remove_stale_stages,
+    scan_data, SCAN_TYPE, staged_bag, TRACKS_TYPE,
 )
 
 SCAN_TOPIC = '/scan'
@@ -50,6 +50,7 @@ class ReplaySummary:
     events: dict = field(default_factory=dict)
     first_reasons: dict = field(default_factory=dict)   # event -> its first scan's reason
     renamed_frames: dict = field(default_factory=dict)  # frame_id as read -> as written
+    removed_stages: list = field(default_factory=list)  # left by runs that were killed
     topic: str = ''
     output: str = ''
     plot: str = ''
@@ -66,7 +67,9 @@ class ReplaySummary:
             f'events           {ev}',
         ] + [f'  first {k}: {why}' for k, why in sorted(self.first_reasons.items())] + [
             f'frame_id         {old!r} written as {new!r} (tf2 in ROS 2 refuses a leading /)'
-            for old, new in sorted(self.renamed_frames.items())]
+            for old, new in sorted(self.renamed_frames.items())] + [
+            f'removed          {stage} (the staging folder of an earlier run that was killed)'
+            for stage in self.removed_stages]
 
 
 class _Progress:
@@ -147,8 +150,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
 
     """
     out = Path(output_path)
-    if out.exists():
-        raise BagError(f'output {out} exists; refusing to overwrite it')
+    check_output(out)
     if plot_path:             # checked, its folder made: not found wanting after the run
         from ..report.imagefile import image_path
 
@@ -159,7 +161,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     reader.close()
     if total == 0:
         raise BagError(f'{topic} in {input_path} holds no scans: nothing to replay')
-    summary = ReplaySummary(topic=topic, output=str(out))
+    summary = ReplaySummary(topic=topic, output=str(out),
+                            removed_stages=[str(p) for p in remove_stale_stages(out)])
     tally = _Tally()
     sketch = None
     if plot_path:

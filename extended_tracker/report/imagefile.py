@@ -7,6 +7,7 @@ first took some 10 MB more resident memory through the memory run).
 from __future__ import annotations
 
 from pathlib import Path
+import tempfile
 
 from ..errors import PlotError
 
@@ -27,7 +28,8 @@ def image_path(path) -> Path:
     Raises
     ------
     PlotError
-        When ``path`` is a folder or its suffix names no format savefig writes.
+        When ``path`` is a folder, its suffix names no format savefig writes, or its
+        folder cannot be made or written in.
     """
     p = Path(path)
     if p.is_dir():
@@ -37,5 +39,12 @@ def image_path(path) -> Path:
     if p.suffix[1:].lower() not in IMAGE_SUFFIXES:
         raise PlotError(f'plot {p}: {p.suffix!r} is not an image format written here; use '
                         f'one of {", ".join("." + s for s in IMAGE_SUFFIXES)}')
-    p.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        # a probe file: the picture is written after the run, which must not end there
+        with tempfile.NamedTemporaryFile(dir=p.parent, prefix=f'.{p.name}.', suffix='.probe'):
+            pass
+    except OSError as err:
+        msg = f'plot {p}: cannot write there: {err.strerror or err}'
+        raise PlotError(msg) from err
     return p

@@ -24,7 +24,10 @@ from rcl_interfaces.msg import (
     FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult,
 )
 import rclpy
-from rclpy.exceptions import InvalidParameterTypeException, ParameterUninitializedException
+from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import (
+    InvalidParameterTypeException, InvalidParameterValueException, ParameterUninitializedException,
+)
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -42,6 +45,7 @@ from ..pipeline import held, PipelineState, reset, step
 from ..report.messages import markers_data, tracks_data
 from .convert import fill
 from .entry import take_signals
+from .events import EventLog, ScanGaps
 
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
 # estimates), or building or publishing its messages did.
@@ -50,7 +54,11 @@ INTERNAL_ERROR = 'internal_error'
 # previous scan's stamp to theirs: scans queue up, and the sensor-data QoS drops them
 FALLING_BEHIND = 'falling_behind'
 FALLING_BEHIND_SCANS = 10
-NODE_EVENTS = (INTERNAL_ERROR, FALLING_BEHIND)
+# scans missing between the stamps of those that reach the callback (ros.events.ScanGaps)
+SCANS_DROPPED = 'scans_dropped'
+NODE_EVENTS = (INTERNAL_ERROR, FALLING_BEHIND, SCANS_DROPPED)
+#: how often what was counted and not logged is summarised in the log, s
+SUMMARY_PERIOD_S = 10.0
 _PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
           'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
           'list': ParameterType.PARAMETER_DOUBLE_ARRAY}
@@ -91,26 +99,26 @@ def _type_error(name: str, expected: int, err: Exception) -> str:
     return f'{name} must be {want}{hint.get(expected, "")}; {said}'
 
 
+def _range_error(name: str, desc: ParameterDescriptor, value) -> str:
+    """The start-up error for a parameter given outside its descriptor's range."""
+    ranges = desc.floating_point_range or desc.integer_range
+    span = f' [{ranges[0].from_value:g}, {ranges[0].to_value:g}]' if ranges else ''
+    return f'{name} = {value!r} is out of its range{span}: {desc.description}'
+
+
 class TrackerNode(Node):
     """Extended object tracker on one LaserScan topic."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
-        for name, (default, desc) in parameter_descriptors().items():
-            try:
-                if isinstance(default, list):
-                    self.declare_parameter(name, rclpy.Parameter.Type.DOUBLE_ARRAY, desc)
-                else:
-                    self.declare_parameter(name, default, desc)
-            except InvalidParameterTypeException as err:
-                # rclpy types parameters strictly: a 1 in a parameter file for a double
-                # raised a traceback from the constructor. Said in one line, with the fix.
-                raise ConfigError(_type_error(name, desc.type, err)) from err
+        self._declare_parameters()
         self.cfg = self._read_config()
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.state = PipelineState.initial(self.cfg)
         self.marker_ids: set = set()
-        self.counts: dict = {}
+        self.events = EventLog()
+        self.gaps = ScanGaps()
+        self.counts = self.events.counts          # event -> count (the diagnostics' count_*)
         self.unknown_parameters = self._check_overrides()
         self.scans = 0
         self._last_stamp_ns = None
@@ -122,12 +130,42 @@ class TrackerNode(Node):
         self.sub = self.create_subscription(LaserScan, 'scan', self.on_scan,
                                             qos_profile_sensor_data)
         self.srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
+        # on the steady clock: the summary comes on time whatever the ROS clock does
+        self.summary_timer = self.create_timer(
+            SUMMARY_PERIOD_S, self.log_summary, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f'tracking {self.sub.topic_name} in {self.cfg.model.mode} mode, p_D '
             f'{self.cfg.detection.model}, clutter density {self.cfg.model.clutter_density}, '
             f'background {"on" if self.cfg.background.enabled else "off"}')
 
     # --- parameters ---
+    def _declare_parameters(self) -> None:
+        """
+        Declare every configuration field with its descriptor. A value the descriptor
+        refuses (a wrong type, or out of range, from a parameter file or ``-p``) is a
+        ConfigError in one line with the fix, not rclpy's traceback. An array given no
+        value is set to the empty array, so that GetParameters answers for it: rclpy's
+        service answers nothing at all when one name asked for is uninitialised.
+        """
+        for name, (default, desc) in parameter_descriptors().items():
+            try:
+                if isinstance(default, list):
+                    self.declare_parameter(name, rclpy.Parameter.Type.DOUBLE_ARRAY, desc)
+                    if self.get_parameter_or(name).value is None:
+                        self.set_parameters([rclpy.Parameter(
+                            name, rclpy.Parameter.Type.DOUBLE_ARRAY, list(default))])
+                else:
+                    self.declare_parameter(name, default, desc)
+            except InvalidParameterTypeException as err:
+                raise ConfigError(_type_error(name, desc.type, err)) from err
+            except InvalidParameterValueException as err:
+                raise ConfigError(_range_error(name, desc, self._given(name))) from err
+
+    def _given(self, name: str):
+        """The value given for ``name`` (a parameter file, ``-p``), or None."""
+        given = getattr(self, '_parameter_overrides', {}).get(name)
+        return None if given is None else given.value
+
     def _read_config(self) -> TrackerConfig:
         flat = {}
         for name, default in to_flat(TrackerConfig()).items():
@@ -189,6 +227,8 @@ class TrackerNode(Node):
             self._count(INTERNAL_ERROR, text, error=True)
             result = held(self.state, msg, INTERNAL_ERROR, text, arrival)
         self.scans += 1
+        if result.event != 'zero_stamp':           # arrival times jitter: no period there
+            self._check_gap(result.stamp_ns)
         if result.event and result.event != INTERNAL_ERROR:
             self._count(result.event, result.error or result.event.replace('_', ' '))
         try:
@@ -204,6 +244,15 @@ class TrackerNode(Node):
                         error=True)
         self.check_pace(result.stamp_ns, time.perf_counter() - t0)
         self.pub_diag.publish(self._diagnostics(result))
+
+    def _check_gap(self, stamp_ns: int) -> None:
+        """Count the scans that never reached the callback (event ``scans_dropped``)."""
+        missing = self.gaps.missing(stamp_ns)
+        if missing:
+            self._count(SCANS_DROPPED, f'{missing} scan(s) missing before the one stamped '
+                        f'{stamp_ns * 1e-9:.3f} s ({self.gaps.total} in all): the '
+                        f'subscription queue dropped them while the node was busy, or the '
+                        f'driver never sent them')
 
     def check_pace(self, stamp_ns: int, took: float) -> None:
         """Count (and say) FALLING_BEHIND_SCANS scans in a row that took longer than the
@@ -235,13 +284,16 @@ class TrackerNode(Node):
         return f'stopping after {self.scans} scans; events: {events}'
 
     def _count(self, kind: str, text: str, error: bool = False) -> None:
-        n = self.counts.get(kind, 0) + 1
-        self.counts[kind] = n
-        log = self.get_logger().error if error else self.get_logger().warning
-        if n == 1:
-            log(f'{kind}: {text} (counted; further ones are summarised every 10 s)')
-        else:
-            log(f'{kind}: {n} so far; last: {text}', throttle_duration_sec=10.0)
+        """Count an event; log it now if it is the first of its kind of reason."""
+        line = self.events.record(kind, text)
+        if line is not None:
+            (self.get_logger().error if error else self.get_logger().warning)(line)
+
+    def log_summary(self) -> None:
+        """Say what was counted since the last summary and not logged (the timer calls it
+        every ``SUMMARY_PERIOD_S``)."""
+        for line in self.events.summary_lines():
+            self.get_logger().warning(line)
 
     def _diagnostics(self, result) -> DiagnosticArray:
         arr = DiagnosticArray()
@@ -258,8 +310,11 @@ class TrackerNode(Node):
         values['processing_time_ms'] = round(result.processing_time * 1e3, 3)
         values['objects'] = len(result.estimates)
         values['scans'] = self.scans
+        values['scans_dropped'] = self.gaps.total
+        values['reason'] = result.error or ''
         for k, v in sorted(self.counts.items()):
             values[f'count_{k}'] = v
+            values[f'last_reason_{k}'] = self.events.last_reason.get(k, '')
         st.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         arr.status = [st]
         return arr

@@ -62,13 +62,14 @@ protect nothing, so a revealed wall that gets tracked is still learned.
 Limitation: a per-beam model cannot tell a person who stands still from start-up from a
 piece of furniture; such a person becomes background after ``confirm_time``. Disable the
 background where people stand still from the start and there is no static clutter.
-The model resets when the beam count or angles change.
+When the beam count or angles change, what was learned is re-mapped to the new beams by
+angle (:meth:`BackgroundState.remapped`).
 
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -105,6 +106,34 @@ class BackgroundState:
         return (len(self.angles) == len(scan.angles)
                 and np.allclose(self.angles, scan.angles, atol=1e-9))
 
+    def remapped(self, scan: ScanPoints) -> 'BackgroundState':
+        """
+        The state on ``scan``'s beams: each beam takes what was learned on the beam
+        nearest its angle, where one lies within half a beam spacing of it; a beam with
+        none (past the old field of view) starts unknown. A driver that changes the beam
+        count now and then (two beams short, reversed, finer) keeps its background.
+        """
+        fresh = BackgroundState.for_scan(scan)
+        if not len(self.angles) or not len(scan.angles):
+            return fresh
+        order = np.argsort(self.angles, kind='stable')
+        old = self.angles[order]
+        step = np.min(np.diff(old)) if len(old) > 1 else np.inf
+        at = old.searchsorted(scan.angles)
+        upper, lower = np.minimum(at, len(old) - 1), np.maximum(at - 1, 0)
+        nearer = np.where(np.abs(scan.angles - old[lower]) <= np.abs(scan.angles - old[upper]),
+                          lower, upper)
+        hit = np.abs(scan.angles - old[nearer]) <= 0.5 * step + 1e-9
+        src = order[nearer[hit]]
+        values = {}
+        for f in fields(self):
+            if f.name in ('angles', 'learned'):
+                continue
+            mine = getattr(fresh, f.name).copy()
+            mine[hit] = getattr(self, f.name)[src]
+            values[f.name] = mine
+        return replace(fresh, **values)
+
 
 def beams_near_tracks(scan: ScanPoints, track_centres: np.ndarray,
                       track_radius: np.ndarray, gate: float, guard: np.ndarray):
@@ -122,7 +151,7 @@ def beams_near_tracks(scan: ScanPoints, track_centres: np.ndarray,
     dy = p[:, 1, None] - track_centres[None, :, 1]
     within = np.sqrt(dx * dx + dy * dy) <= (track_radius + gate)[None, :]   # norm's bits
     near[scan.beam[np.any(within, axis=1)]] = True
-    if np.any(guard):
+    if guard.any():
         prot[scan.beam[np.any(within[:, guard], axis=1)]] = True
     return prot, near
 
@@ -208,7 +237,7 @@ def continues_surface(r, b, which, reach, margin, wrap=False):
         rs = r[idx, None]
         bj = _padded(b, np.nan, wrap)[idx[:, None] + _OFFSETS + NEIGHBOUR_BEAMS]
         hit = np.any((np.abs(bj - rs) <= margin) & (rs <= reach), axis=1)
-        if not np.any(hit):
+        if not hit.any():
             return out
         if run is None:
             run = _runs(r, which, reach[NEIGHBOUR_BEAMS + 1], margin, wrap)
@@ -254,8 +283,10 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         part would lose the rest); they ripen as any return does.
 
     """
-    if state is None or not state.matches(scan):
+    if state is None:
         state = BackgroundState.for_scan(scan)
+    elif not state.matches(scan):
+        state = state.remapped(scan)
     r = scan.ranges                                   # inf where no return
     with np.errstate(invalid='ignore'):
         seen = _refine_known(state, r, dt, cfg)
@@ -362,13 +393,13 @@ def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked):
     lately = seen.known & (seen.b_ago <= cfg.confirm_time)
     long = age >= cfg.forget_time - 1e-6
     thin = learn & nearer & ripe & ~lately & ~long
-    if np.any(thin):
+    if thin.any():
         which = thin.nonzero()[0]
         thin[which] = _alone(r, which, reach, margin, wrap)
     hidden = learn & ~seen.known & ~seen.free
     if tracked is not None:
         hidden &= ~tracked
-    if np.any(hidden):
+    if hidden.any():
         hidden = continues_surface(r, b, hidden, reach, margin, wrap)
     promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
     second = learn & ripe & lately & ~promote

@@ -231,8 +231,10 @@ def scan_to_points(scan, min_range: float = 0.0, max_range: float = 0.0,
     Notes
     -----
     Invalid beams: NaN, +inf, -inf, below ``range_min``, above ``range_max``, each beam
-    counted under one kind. A scan with no valid beam (or no beam) converts to zero
-    points: the caller runs a predict-only step.
+    counted under one kind. A scan with no valid beam converts to zero points: the caller
+    runs a predict-only step. An empty ``ranges`` under angle fields that declare beams is
+    malformed like any other disagreement (a truncated message), where an all-NaN scan is
+    data.
 
     """
     a0, inc, r_lo, r_hi, ranges = _checked_fields(scan)
@@ -278,7 +280,7 @@ def _checked_fields(scan):
     if n * abs(inc) > 2 * math.pi + abs(inc) + 1e-6:
         raise ScanError(f'{n} beams of {inc:.6g} rad span more than a full turn')
     a_max = getattr(scan, 'angle_max', None)
-    if a_max is not None and n:
+    if a_max is not None:
         a1 = _finite('angle_max', a_max)
         expected = (a1 - a0) / inc + 1.0
         # Drivers differ by a beam in two conventions: angle_max as n rather than n - 1
@@ -286,7 +288,9 @@ def _checked_fields(scan):
         # angles are angle_min + k * angle_increment whatever angle_max says, so up to two
         # beams (and float32 rounding) are taken; the Freiburg SICK recording's
         # /ROBOTLASER1 is 1.015 beams off, and all of its scans were refused.
-        if expected < 0.5 or abs(expected - n) > MAX_BEAM_MISMATCH:
+        # an empty ranges array under angle fields that declare beams is a truncated
+        # message too, not a scan that saw nothing (that one has its beams, all invalid)
+        if (n and expected < 0.5) or abs(expected - n) > MAX_BEAM_MISMATCH:
             raise ScanError(f'len(ranges) = {n} disagrees with angle_min={a0:.6g}, '
                             f'angle_max={a1:.6g}, angle_increment={inc:.6g} '
                             f'(expected {expected:.1f} beams)')

@@ -1,0 +1,93 @@
+"""
+The node's event log: every event counted, each new kind of reason said at once, the
+rest summarised once a period. Plain Python (no rclpy), so it is tested on its own.
+
+An event's reason names what went wrong with the figures of that scan (``len(ranges) =
+0 disagrees with ... 1081 beams``, ``2.500 s since the previous scan``). Two reasons that
+differ only in their figures are one kind: the first is logged, the others counted. A
+reason of another kind is logged at once, however soon after the first (a driver sending
+two kinds of broken scan shows both). What was counted but not logged is summarised by
+:meth:`EventLog.summary_lines`, which the node calls every ``period`` seconds.
+"""
+
+from __future__ import annotations
+
+import re
+
+# reasons of one event that differ only in numbers are one kind of reason
+_FIGURES = re.compile(r'[-+]?\d+(?:\.\d+)?(?:e[-+]?\d+)?')
+# at most this many kinds of reason logged at once per event; the rest are summarised
+MAX_KINDS = 20
+
+
+def reason_kind(reason: str) -> str:
+    """The reason with its figures taken out."""
+    return _FIGURES.sub('#', reason)
+
+
+class EventLog:
+    """Counts of the node's events, their last reasons, and what to log when."""
+
+    def __init__(self):
+        self.counts: dict[str, int] = {}
+        self.last_reason: dict[str, str] = {}
+        self._kinds: dict[str, set] = {}
+        self._unsaid: dict[str, int] = {}
+
+    def record(self, event: str, reason: str) -> str | None:
+        """Count one ``event``; the line to log now (its first, or a new kind of reason)
+        or None (it is counted for the next summary)."""
+        n = self.counts.get(event, 0) + 1
+        self.counts[event] = n
+        self.last_reason[event] = reason
+        kinds = self._kinds.setdefault(event, set())
+        kind = reason_kind(reason)
+        if kind not in kinds and len(kinds) < MAX_KINDS:
+            kinds.add(kind)
+            more = ('counted; further ones are summarised every 10 s' if n == 1 else
+                    f'{n} so far')
+            return f'{event}: {reason} ({more})'
+        self._unsaid[event] = self._unsaid.get(event, 0) + 1
+        return None
+
+    def summary_lines(self) -> list[str]:
+        """One line per event counted since the last summary and not logged then."""
+        lines = [f'{event}: {k} more since the last summary ({self.counts[event]} in all); '
+                 f'last: {self.last_reason[event]}'
+                 for event, k in sorted(self._unsaid.items())]
+        self._unsaid.clear()
+        return lines
+
+
+class ScanGaps:
+    """
+    Scans missing between the stamps of those that arrive, from the scanner's own period
+    (the median of the last ``window`` stamp steps, once ``min_steps`` are known).
+
+    A step of ``k`` periods (k >= 1.5, rounded) means ``k - 1`` scans that never reached
+    the callback: the subscription's queue dropped them while the node was busy (a burst
+    faster than it can keep up with), or the driver or the network lost them. Steps back
+    and repeats are the pipeline's events, not gaps.
+    """
+
+    def __init__(self, window: int = 20, min_steps: int = 5, ratio: float = 1.5):
+        self.window, self.min_steps, self.ratio = window, min_steps, ratio
+        self._steps: list[int] = []
+        self._last: int | None = None
+        self.total = 0
+
+    def missing(self, stamp_ns: int) -> int:
+        """The scans missing just before the one stamped ``stamp_ns``."""
+        last, self._last = self._last, stamp_ns
+        if last is None or stamp_ns <= last:
+            return 0
+        step = stamp_ns - last
+        missing = 0
+        if len(self._steps) >= self.min_steps:
+            period = sorted(self._steps)[len(self._steps) // 2]
+            if step >= self.ratio * period:
+                missing = round(step / period) - 1
+        if not missing:
+            self._steps = (self._steps + [step])[-self.window:]
+        self.total += missing
+        return missing
