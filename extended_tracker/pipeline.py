@@ -40,19 +40,12 @@ import numpy as np
 from .config import TrackerConfig
 from .diagnostics import Diagnostics
 from .errors import ScanError
-from .filter.algebra2 import inv2
-from .filter.cardinality import thin_cardinality
-from .filter.ggiw import gate_covariance, gate_distance2
 from .filter.state import FilterState, predict_state
-from .filter.update import gate_threshold, pair_updates, sensor_noise, SensorTerms, update
-from .sensing.background import BackgroundState, beams_near_tracks, update_background
-from .sensing.detection import (
-    detection_model, pair_detection_probability, sparse_births, Visibility,
-)
+from .sensing.background import BackgroundState
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
+from .stages import detect, drop_absorbed, remove_background, update_tracks
 from .tracks.estimates import Estimates
-from .tracks.manage import manage_tracks
-from .tracks.record import find_sorted, TrackRecord
+from .tracks.record import TrackRecord
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
           'unexplained_scan', 'zero_stamp', 'scan_layout_changed')
@@ -157,36 +150,51 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     scan_in = _accept(state, scan, cfg, arrival_ns, t0)
     if isinstance(scan_in, StepResult):
         return state, scan_in
-    sp, now, frame, dt, filt, tracks, event, error = scan_in
+    sp, dt, event, error = scan_in.points, scan_in.dt, scan_in.event, scan_in.error
     diag = _scan_counts(sp)
-    if cfg.background.enabled and state.background is not None and len(sp.angles) \
-            and not state.background.matches(sp):
-        event, error = _with_event(event, error, 'scan_layout_changed', _layout_change(
-            state.background, sp))
+    if _layout_changed(state.background, sp, cfg):
+        event, error = _with_event(event, error, 'scan_layout_changed',
+                                   _layout_change(state.background, sp))
     background, points, bg_points, learned, moved = remove_background(
-        state, tracks, sp, dt, cfg, diag)
-    pred = predict_state(filt, dt, cfg)
-    pred = drop_absorbed(pred, learned, points, cfg, diag, first_new=filt.next_label)
+        state, scan_in.tracks, sp, dt, cfg, diag)
+    pred = predict_state(scan_in.filter, dt, cfg)
+    pred = drop_absorbed(pred, learned, points, cfg, diag, first_new=scan_in.filter.next_label)
     pred, vis = detect(pred, sp, cfg, diag)
-    filt, tracks, estimates = update_tracks(pred, tracks, points, sp, vis, cfg, dt, diag)
+    filt, tracks, estimates = update_tracks(pred, scan_in.tracks, points, sp, vis, cfg, dt,
+                                            diag)
     if diag.unexplained:
-        event, error = _with_event(event, error, 'unexplained_scan', (
-            f'no partition of the {len(points)} returns is possible (more objects than '
-            f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it'))
+        event, error = _with_event(event, error, 'unexplained_scan',
+                                   _unexplained(len(points), cfg))
     new_state = replace(state, filter=filt, tracks=tracks, background=background,
-                        last_stamp_ns=now, frame_id=frame, last_estimates=estimates,
-                        moved=moved, scans=state.scans + 1, elapsed=state.elapsed + dt)
+                        last_stamp_ns=scan_in.stamp_ns, frame_id=scan_in.frame_id,
+                        last_estimates=estimates, moved=moved, scans=state.scans + 1,
+                        elapsed=state.elapsed + dt)
     card, mean = _card_of(new_state)
-    return new_state, StepResult(now, frame, estimates, card, mean, points, bg_points, diag,
-                                 event, error, time.perf_counter() - t0)
+    return new_state, StepResult(scan_in.stamp_ns, scan_in.frame_id, estimates, card, mean,
+                                 points, bg_points, diag, event, error,
+                                 time.perf_counter() - t0)
+
+
+@dataclass(frozen=True)
+class _Accepted:
+    """A scan placed in time (:func:`_accept`): its points, stamp, frame and period, the
+    filter and record to go on from (fresh after a restart), and its event and reason."""
+
+    points: ScanPoints
+    stamp_ns: int
+    frame_id: str
+    dt: float
+    filter: FilterState
+    tracks: TrackRecord
+    event: str | None
+    error: str | None
 
 
 def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0):
     """
     Read the scan's header and beams and place it in time: either the held result of a
-    scan that is not used (malformed, foreign frame, repeated stamp), or
-    ``(points, now, frame, dt, filter, tracks, event, error)`` where the filter and the
-    record are reset on a step back in time or a gap.
+    scan that is not used (malformed, foreign frame, repeated stamp), or the scan
+    :class:`_Accepted`, the filter and the record reset on a step back in time or a gap.
     """
     try:
         now = stamp_ns(scan)
@@ -215,7 +223,7 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0):
         event = 'zero_stamp'
         error = ('the header stamp is zero (a driver that does not set it?): the scan is '
                  'taken at its arrival time')
-    return sp, now, frame, dt, filt, tracks, event, error
+    return _Accepted(sp, now, frame, dt, filt, tracks, event, error)
 
 
 def scan_period(last_ns: int | None, now_ns: int, cfg: TrackerConfig):
@@ -250,129 +258,23 @@ def _scan_counts(sp: ScanPoints) -> Diagnostics:
     return diag
 
 
-def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints, dt: float,
-                      cfg: TrackerConfig, diag: Diagnostics):
-    """
-    Drop static returns; never learn those of tracks that have moved.
-
-    Confirmed, person-sized tracks that have moved protect their returns; a label seen to
-    move keeps protecting while it lives, though its report record (and travel) restarts
-    after a scan it was not reported in. During the warm-up every return is background:
-    the filter runs predict-only steps while the background is learned, so walls are
-    never tracked.
-
-    Returns the background, the foreground points, the background points, the returns
-    whose beams were learned this scan and the labels seen to move.
-    """
-    empty = np.zeros((0, 2))
-    if not cfg.background.enabled or not len(sp.angles):
-        return state.background, sp.points, empty, empty, state.moved
-    est, bgc = state.last_estimates, cfg.background
-    travel = tracks.confirmed_travel(est.label, cfg.extraction)
-    moved = np.union1d(state.moved[find_sorted(tracks.shown, state.moved)[1]],
-                       est.label[travel >= bgc.moved_distance])
-    major = est.axes()[0] if len(est) else np.zeros(0)
-    guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
-    protect, near = beams_near_tracks(sp, est.m[:, :2], major, bgc.track_gate, guard)
-    background, keep = update_background(state.background, sp, dt, bgc, protect, near)
-    points, bg_points = sp.points[keep], sp.points[~keep]
-    learned = sp.points[background.learned[sp.beam]]
-    diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
-    if state.elapsed + dt <= bgc.warmup:
-        diag.warmup = 1
-        bg_points, points = np.vstack([bg_points, points]), empty
-    return background, points, bg_points, learned, moved
-
-
-def drop_absorbed(pred: FilterState, learned: np.ndarray, points: np.ndarray,
-                  cfg: TrackerConfig, diag: Diagnostics, first_new: int) -> FilterState:
-    """
-    Drop the tracks that stood on returns just learned as background with no foreground
-    return left (not the region births of this scan, labels from ``first_new`` on), and
-    take their weight from the cardinality: they are not left to coast onto a
-    neighbour's returns.
-    """
-    mix = pred.mixture
-    if not len(learned) or not len(mix) or diag.warmup:
-        return pred
-    on_bg = absorbed(mix, learned, points, cfg) & (mix.label < first_new)
-    if not on_bg.any():
-        return pred
-    diag.absorbed = int(np.count_nonzero(on_bg))
-    return replace(pred, mixture=mix.take(~on_bg),
-                   log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
-
-
-def absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) -> np.ndarray:
-    """
-    The components that gate one of the ``learned`` returns and none of the foreground
-    ``points``: the object they track has just been learned as background.
-    """
-    gate_inv = inv2(gate_covariance(mix, cfg.model.rho, sensor_noise(cfg)))
-    threshold = gate_threshold(cfg)
-
-    def gated(z):
-        if not len(z):
-            return np.zeros(len(mix), dtype=bool)
-        return np.any(gate_distance2(mix, z, gate_inv) < threshold, axis=1)
-
-    return gated(learned) & ~gated(points)
-
-
-def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig,
-           diag: Diagnostics) -> tuple[FilterState, Visibility]:
-    """
-    The detection model of the predicted components; drop those that are no object in
-    view.
-
-    Objects that left the field of view or range can never be seen again here: dropped
-    rather than left to coast forever with p_D = 0. So are components the sensor would
-    stand in, and those in view that expect far fewer returns than the beams they span,
-    made of clutter: not objects, so their weight leaves the cardinality too.
-    """
-    vis = detection_model(pred.mixture, sp, cfg)
-    if vis.outside is None:
-        return pred, vis
-    drop = vis.outside | vis.at_sensor | vis.sparse
-    if not drop.any():
-        return pred, vis
-    at_sensor = vis.at_sensor & ~vis.outside
-    sparse = vis.sparse & ~vis.outside & ~vis.at_sensor
-    diag.left_view = int(np.count_nonzero(vis.outside))
-    diag.at_sensor = int(np.count_nonzero(at_sensor))
-    diag.sparse = int(np.count_nonzero(sparse))
-    log_card = pred.log_card
-    if diag.at_sensor or diag.sparse:
-        log_card = thin_cardinality(log_card, float(pred.mixture.w[at_sensor | sparse].sum()))
-    return replace(pred, mixture=pred.mixture.take(~drop), log_card=log_card), vis.take(~drop)
-
-
-def update_tracks(pred: FilterState, tracks: TrackRecord, points: np.ndarray,
-                  sp: ScanPoints, vis: Visibility, cfg: TrackerConfig, dt: float,
-                  diag: Diagnostics):
-    """
-    The filter update with the scan's detection model, then track management.
-
-    The sensor model is evaluated on what the filter's pair updates return: each pair's
-    p_D where its cell puts the object, and which births the scan could not have seen.
-    """
-    sensor = SensorTerms(vis.p_d, vis.rate_scale, vis.visible, vis.offset, vis.shadowed)
-    clutter = (sp.beam_clutter_log_density(points) if cfg.model.clutter_density == 'beam'
-               else None)
-    pairs = pair_updates(pred.mixture, points, cfg, sensor, sp.area, clutter)
-    pair_p_d = pair_detection_probability(pred.mixture, pairs.comp, pairs.m, pairs.P, sp,
-                                          cfg, vis.p_d)
-    filt, facts = update(pred, pairs, sensor, pair_p_d, cfg, dt, diag,
-                         birth_unseen=sparse_births(pairs.births, sp, cfg),
-                         confirmed=tracks.confirmed_labels(cfg.extraction))
-    return manage_tracks(filt, tracks, facts, cfg, dt, pred.next_label, diag)
-
-
 def _with_event(event, error, new_event: str, why: str):
     """The event and reason of a scan that also met ``new_event`` (a restart outranks it;
     a zero stamp, every scan from some drivers, does not); both reasons are kept."""
     event = new_event if event in (None, 'zero_stamp') else event
     return event, why if error is None else f'{error}; {why}'
+
+
+def _layout_changed(background, sp: ScanPoints, cfg: TrackerConfig) -> bool:
+    """Whether the scan's beams differ from those the background was learned on."""
+    return (cfg.background.enabled and background is not None and len(sp.angles) > 0
+            and not background.matches(sp))
+
+
+def _unexplained(n_points: int, cfg: TrackerConfig) -> str:
+    """The reason of event ``unexplained_scan``."""
+    return (f'no partition of the {n_points} returns is possible (more objects than '
+            f'model.n_max = {cfg.model.n_max}?): the tracks were predicted through it')
 
 
 def _layout_change(background, sp: ScanPoints) -> str:

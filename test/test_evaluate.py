@@ -12,7 +12,11 @@ import pytest
 from extended_tracker.bag.replay import replay
 from extended_tracker.config import from_dict
 from extended_tracker.evaluation.evaluate import (
-    evaluate_bag, in_view, run_scenario, truth_of, VARIANTS,
+    evaluate_bag,
+    in_view,
+    run_scenario,
+    truth_of,
+    VARIANTS,
 )
 from extended_tracker.sim.bag import write_sim_bag
 from extended_tracker.sim.laser import TruthObject

@@ -18,7 +18,11 @@ from extended_tracker.filter.ggiw import cell_stats, gate_pairs, PairUpdate
 from extended_tracker.filter.mixture import IW_OFFSET, Mixture
 from extended_tracker.filter.state import FilterState, predict_state
 from extended_tracker.filter.update import (
-    gate_threshold, pair_updates, sensor_noise, SensorTerms, update,
+    gate_threshold,
+    pair_updates,
+    sensor_noise,
+    SensorTerms,
+    update,
 )
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.detection import detection_model, sparse_births

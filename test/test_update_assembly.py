@@ -200,3 +200,24 @@ def test_birth_hypotheses_lighter_than_birth_min_weight_are_dropped():
     strict = replace(cfg, birth=replace(cfg.birth, min_weight=1.0))
     got, _, diag = run_update(state, points, p_d, strict)
     assert not (got.filter.mixture.label >= 4).any() and diag.births == 0
+
+
+def test_the_births_a_sensor_can_refuse_are_those_no_seen_pair_explains():
+    """``Pairs.free_birth_cells``: the cells of at least ``birth.min_points`` returns that
+    no pair with p_D above zero explains. In the scene the two lone returns are paired
+    with labels 1 and 2; with the pair of label 2 unseen (p_D 0) its cell is free too."""
+    from extended_tracker.filter.update import pair_updates
+
+    cfg, state, points, _, _ = scene('cphd')
+    mix = state.filter.mixture
+    pairs = pair_updates(mix, points, cfg, SensorTerms(np.full(3, 0.9)), AREA)
+    seen = np.full(len(pairs.comp), 0.9)
+    free = pairs.free_birth_cells(seen, 1)
+    paired = set(pairs.cell.tolist())
+    assert set(free.tolist()) == set(range(pairs.n_cells)) - paired
+    by_two = pairs.cell[pairs.comp == 1]
+    seen[pairs.comp == 1] = 0.0
+    assert set(pairs.free_birth_cells(seen, 1).tolist()) == set(free.tolist()) | set(
+        by_two.tolist()) - set(pairs.cell[pairs.comp != 1].tolist())
+    # a cell smaller than min_points is never a birth to refuse
+    assert all(pairs.stats.n[c] >= 3 for c in pairs.free_birth_cells(seen, 3))

@@ -1,0 +1,1 @@
+"""Bag reading and writing (rosbags) and the offline replay."""

@@ -1,0 +1,1 @@
+"""Metrics, the scenario suite and its results table, the benchmark."""

@@ -1,0 +1,1 @@
+"""The GGIW-CPHD filter: mixture, prediction, partitions, the multi-object update, reduction."""

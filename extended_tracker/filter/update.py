@@ -27,7 +27,13 @@ from .births import birth_intensity, birth_log_miss_factor, birth_prior
 from .cardinality import add_cardinality, poisson_log_pmf, thin_cardinality
 from .cphd import cphd_update, phd_update, UpdateWeights
 from .ggiw import (
-    cell_stats, CellStats, gate_covariance, gate_pairs, log_miss_factor, PairUpdate, update_pairs,
+    cell_stats,
+    CellStats,
+    gate_covariance,
+    gate_pairs,
+    log_miss_factor,
+    PairUpdate,
+    update_pairs,
 )
 from .hidden import held_p_d, out_of_sight
 from .mixture import Mixture
@@ -90,10 +96,19 @@ class Pairs:
     def n_cells(self) -> int:
         return len(self.stats.n)
 
-    @property
-    def births(self) -> PairUpdate:
-        """The birth hypothesis of each cell, updated with it."""
-        return self.updated.take(len(self.comp) + np.arange(self.n_cells))
+    def births(self, cells: np.ndarray) -> PairUpdate:
+        """The birth hypotheses of ``cells``, each updated with its cell."""
+        return self.updated.take(len(self.comp) + np.asarray(cells, dtype=np.int64))
+
+    def free_birth_cells(self, pair_p_d: np.ndarray, min_points: int) -> np.ndarray:
+        """
+        The cells (indices) a birth may come from that no pair the sensor could have
+        detected (``pair_p_d > 0``) explains: the only births a sensor's refusal
+        (:func:`update`'s ``birth_unseen``) can change.
+        """
+        free = self.stats.n >= min_points
+        free[self.cell[np.asarray(pair_p_d) > 0.0]] = False
+        return free.nonzero()[0]
 
     @property
     def m(self) -> np.ndarray:
@@ -265,7 +280,8 @@ def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.nd
         Filled with the update's counts.
     birth_unseen : (c,) bool array, optional
         Cells whose birth hypothesis is no object the sensor could see; refused where no
-        existing component is paired with the cell.
+        existing component is paired with the cell (:meth:`Pairs.free_birth_cells`: only
+        those need to be evaluated).
     confirmed : (r,) int array, optional
         Confirmed labels, ascending: with ``detection.hold_hidden``, those wholly in
         shadow are held from a miss (:func:`hidden.held_p_d`).

@@ -1,0 +1,1 @@
+"""What a scan's result becomes: message contents, markers, pictures."""

@@ -1,0 +1,1 @@
+"""Track management: from the filter's labelled posterior to the objects a user sees."""

@@ -1,9 +1,6 @@
 """
-What the filter carries from scan to scan and what it reports.
-
-:class:`FilterState` is data, passed into a filter step and returned by it (the mixture,
-the cardinality pmf and the record of the ids shown); :class:`Estimates` are the objects
-one scan reports; :class:`StepDiagnostics` counts what a step did.
+What one scan reports: :class:`Estimates`, the objects shown, arrays with a leading
+object axis (what the node publishes and the replay writes).
 """
 
 from __future__ import annotations

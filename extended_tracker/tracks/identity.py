@@ -1,14 +1,13 @@
 """
 The ids a user sees: what happens to the filter's labels between extraction and report.
 
-A label is reported once confirmed (:meth:`FilterState.confirmed_rows`); after that its
-id must mean one object. A label that could not have got where it is gets a fresh id
-(:func:`relabel_jumps`); a lost id passes to a young object where the lost one would be
-(:func:`hand_over`); the report record counts scans, returns and travel
-(:func:`record_reports`); two labels that stay together as parts of one object become one
-track (:func:`join_pairs`); where and when each id was last shown is remembered
-(:func:`remember_shown`); the thin pieces of one contour are reported as one object
-(:func:`group_segments`). :func:`tracks.manage.manage_tracks` calls them in that order.
+A label is reported once confirmed (:meth:`record.TrackRecord.confirmed_rows`); after
+that its id must mean one object. A label that could not have got where it is gets a
+fresh id (:func:`relabel_jumps`); a lost id passes to a young object where the lost one
+would be (:func:`hand_over`); the report record counts scans, returns and travel
+(:func:`record_reports`); where and when each id was last shown is remembered
+(:func:`remember_shown`). :func:`manage.manage_tracks` calls them, with the leg pairs
+(:mod:`tracks.pairs`) and the grouped contour pieces (:mod:`tracks.grouping`).
 """
 
 from __future__ import annotations

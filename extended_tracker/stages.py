@@ -1,0 +1,153 @@
+"""
+The stages of one scan that join sensing, the filter and the tracks, in the order
+:func:`pipeline.step` calls them: the static background removed, the tracks that stood on
+it dropped, the detection model of the prediction, the filter update with the scan's
+sensor model, then track management.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .config import TrackerConfig
+from .diagnostics import Diagnostics
+from .filter.algebra2 import inv2
+from .filter.cardinality import thin_cardinality
+from .filter.ggiw import gate_covariance, gate_distance2
+from .filter.state import FilterState
+from .filter.update import gate_threshold, pair_updates, sensor_noise, SensorTerms, update
+from .sensing.background import beams_near_tracks, update_background
+from .sensing.detection import (
+    detection_model, pair_detection_probability, sparse_births, Visibility,
+)
+from .sensing.scan import ScanPoints
+from .tracks.manage import manage_tracks
+from .tracks.record import find_sorted, TrackRecord
+
+if TYPE_CHECKING:                                   # the pipeline imports these stages
+    from .pipeline import PipelineState
+
+
+def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints, dt: float,
+                      cfg: TrackerConfig, diag: Diagnostics):
+    """
+    Drop static returns; never learn those of tracks that have moved.
+
+    Confirmed, person-sized tracks that have moved protect their returns; a label seen to
+    move keeps protecting while it lives, though its report record (and travel) restarts
+    after a scan it was not reported in. During the warm-up every return is background:
+    the filter runs predict-only steps while the background is learned, so walls are
+    never tracked.
+
+    Returns the background, the foreground points, the background points, the returns
+    whose beams were learned this scan and the labels seen to move.
+    """
+    empty = np.zeros((0, 2))
+    if not cfg.background.enabled or not len(sp.angles):
+        return state.background, sp.points, empty, empty, state.moved
+    est, bgc = state.last_estimates, cfg.background
+    travel = tracks.confirmed_travel(est.label, cfg.extraction)
+    moved = np.union1d(state.moved[find_sorted(tracks.shown, state.moved)[1]],
+                       est.label[travel >= bgc.moved_distance])
+    major = est.axes()[0] if len(est) else np.zeros(0)
+    guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
+    protect, near = beams_near_tracks(sp, est.m[:, :2], major, bgc.track_gate, guard)
+    background, keep = update_background(state.background, sp, dt, bgc, protect, near)
+    points, bg_points = sp.points[keep], sp.points[~keep]
+    learned = sp.points[background.learned[sp.beam]]
+    diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
+    if state.elapsed + dt <= bgc.warmup:
+        diag.warmup = 1
+        bg_points, points = np.vstack([bg_points, points]), empty
+    return background, points, bg_points, learned, moved
+
+
+def drop_absorbed(pred: FilterState, learned: np.ndarray, points: np.ndarray,
+                  cfg: TrackerConfig, diag: Diagnostics, first_new: int) -> FilterState:
+    """
+    Drop the tracks that stood on returns just learned as background with no foreground
+    return left (not the region births of this scan, labels from ``first_new`` on), and
+    take their weight from the cardinality: they are not left to coast onto a
+    neighbour's returns.
+    """
+    mix = pred.mixture
+    if not len(learned) or not len(mix) or diag.warmup:
+        return pred
+    on_bg = absorbed(mix, learned, points, cfg) & (mix.label < first_new)
+    if not on_bg.any():
+        return pred
+    diag.absorbed = int(np.count_nonzero(on_bg))
+    return replace(pred, mixture=mix.take(~on_bg),
+                   log_card=thin_cardinality(pred.log_card, float(mix.w[on_bg].sum())))
+
+
+def absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) -> np.ndarray:
+    """
+    The components that gate one of the ``learned`` returns and none of the foreground
+    ``points``: the object they track has just been learned as background.
+    """
+    gate_inv = inv2(gate_covariance(mix, cfg.model.rho, sensor_noise(cfg)))
+    threshold = gate_threshold(cfg)
+
+    def gated(z):
+        if not len(z):
+            return np.zeros(len(mix), dtype=bool)
+        return np.any(gate_distance2(mix, z, gate_inv) < threshold, axis=1)
+
+    return gated(learned) & ~gated(points)
+
+
+def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig,
+           diag: Diagnostics) -> tuple[FilterState, Visibility]:
+    """
+    The detection model of the predicted components; drop those that are no object in
+    view.
+
+    Objects that left the field of view or range can never be seen again here: dropped
+    rather than left to coast forever with p_D = 0. So are components the sensor would
+    stand in, and those in view that expect far fewer returns than the beams they span,
+    made of clutter: not objects, so their weight leaves the cardinality too.
+    """
+    vis = detection_model(pred.mixture, sp, cfg)
+    if vis.outside is None:
+        return pred, vis
+    drop = vis.outside | vis.at_sensor | vis.sparse
+    if not drop.any():
+        return pred, vis
+    at_sensor = vis.at_sensor & ~vis.outside
+    sparse = vis.sparse & ~vis.outside & ~vis.at_sensor
+    diag.left_view = int(np.count_nonzero(vis.outside))
+    diag.at_sensor = int(np.count_nonzero(at_sensor))
+    diag.sparse = int(np.count_nonzero(sparse))
+    log_card = pred.log_card
+    if diag.at_sensor or diag.sparse:
+        log_card = thin_cardinality(log_card, float(pred.mixture.w[at_sensor | sparse].sum()))
+    return replace(pred, mixture=pred.mixture.take(~drop), log_card=log_card), vis.take(~drop)
+
+
+def update_tracks(pred: FilterState, tracks: TrackRecord, points: np.ndarray,
+                  sp: ScanPoints, vis: Visibility, cfg: TrackerConfig, dt: float,
+                  diag: Diagnostics):
+    """
+    The filter update with the scan's detection model, then track management.
+
+    The sensor model is evaluated on what the filter's pair updates return: each pair's
+    p_D where its cell puts the object, and which births the scan could not have seen.
+    """
+    sensor = SensorTerms(vis.p_d, vis.rate_scale, vis.visible, vis.offset, vis.shadowed)
+    clutter = (sp.beam_clutter_log_density(points) if cfg.model.clutter_density == 'beam'
+               else None)
+    pairs = pair_updates(pred.mixture, points, cfg, sensor, sp.area, clutter)
+    pair_p_d = pair_detection_probability(pred.mixture, pairs.comp, pairs.m, pairs.P, sp,
+                                          cfg, vis.p_d)
+    # the sensor is asked only about the births no pair it could have seen explains
+    unseen = np.zeros(pairs.n_cells, dtype=bool)
+    free = pairs.free_birth_cells(pair_p_d, cfg.birth.min_points)
+    if len(free):
+        unseen[free] = sparse_births(pairs.births(free), sp, cfg)
+    filt, facts = update(pred, pairs, sensor, pair_p_d, cfg, dt, diag, birth_unseen=unseen,
+                         confirmed=tracks.confirmed_labels(cfg.extraction))
+    return manage_tracks(filt, tracks, facts, cfg, dt, pred.next_label, diag)
