@@ -16,11 +16,7 @@ from extended_tracker.filter.state import predict_state
 from extended_tracker.filter.update import SensorTerms
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.scan import (
-    BEAM_CLUTTER_MIN_RANGE,
-    Header,
-    scan_to_points,
-    ScanData,
-    Stamp,
+    BEAM_CLUTTER_MIN_RANGE, Header, scan_to_points, ScanData, Stamp,
 )
 from extended_tracker.sim import laser
 from extended_tracker.tracker import TrackerState, update_step

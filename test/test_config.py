@@ -5,12 +5,7 @@ from pathlib import Path
 import pytest
 
 from extended_tracker.config import (
-    from_dict,
-    from_flat,
-    iter_leaves,
-    leaf_kind,
-    to_flat,
-    TrackerConfig,
+    from_dict, from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig,
 )
 from extended_tracker.configio import load_yaml
 from extended_tracker.errors import ConfigError

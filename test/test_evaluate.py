@@ -12,11 +12,7 @@ import pytest
 from extended_tracker.bag.replay import replay
 from extended_tracker.config import from_dict
 from extended_tracker.evaluation.evaluate import (
-    evaluate_bag,
-    in_view,
-    run_scenario,
-    truth_of,
-    VARIANTS,
+    evaluate_bag, in_view, run_scenario, truth_of, VARIANTS,
 )
 from extended_tracker.sim.bag import write_sim_bag
 from extended_tracker.sim.laser import TruthObject
@@ -192,6 +188,7 @@ def test_a_replayed_bag_is_scored_over_the_region_its_truth_file_gives(tmp_path)
     assert all(g.total == 0.0 and g.n_false == 0 == g.n_missed for g in per)
 
 
+@pytest.mark.slow
 def test_the_evaluate_plot_is_gospa_and_the_counts_against_seconds(tmp_path, saved_figures):
     """What ``evaluate --plot`` draws: per scan, GOSPA and the localisation part's root
     on top, the true and the estimated count below, against seconds from the first

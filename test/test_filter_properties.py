@@ -9,9 +9,7 @@ import pytest
 from extended_tracker.config import TrackerConfig
 from extended_tracker.filter import cardinality as cphd
 from extended_tracker.filter.cardinality import (
-    predict_cardinality,
-    predict_cardinality_log,
-    resize_cardinality,
+    predict_cardinality, predict_cardinality_log, resize_cardinality,
 )
 from extended_tracker.filter.distance import distance_partitions
 from extended_tracker.filter.ggiw import cell_stats, predict, update_pairs

@@ -84,6 +84,7 @@ def test_missed_detections_cphd_keeps_the_track_phd_does_not():
     assert sum(reported['phd']) == 0, reported
 
 
+@pytest.mark.slow
 def test_cphd_cardinality_variance_below_phd():
     objects = [PointObject((-4.0, y), (0.8, 0.1 * y)) for y in (-3.0, -1.0, 1.0, 3.0)]
     var = {}

@@ -22,11 +22,7 @@ from scipy.linalg import sqrtm
 from scipy.special import gammaln, logsumexp, multigammaln
 
 from extended_tracker.filter.ggiw import (
-    cell_stats,
-    log_miss_factor,
-    PairUpdate,
-    predict,
-    update_pairs,
+    cell_stats, log_miss_factor, PairUpdate, predict, update_pairs,
 )
 from extended_tracker.filter.mixture import IW_OFFSET, Mixture
 from extended_tracker.tracks.estimates import Estimates

@@ -9,15 +9,8 @@ import pytest
 from extended_tracker.config import TrackerConfig
 from extended_tracker.pipeline import StepResult
 from extended_tracker.report.messages import (
-    ELLIPSE_SEGMENTS,
-    id_rgba,
-    LINE_STRIP,
-    markers_data,
-    outline_xy,
-    SHAPE_ELLIPSE,
-    SHAPE_RECTANGLE,
-    shapes,
-    tracks_data,
+    ELLIPSE_SEGMENTS, id_rgba, LINE_STRIP, markers_data, outline_xy, SHAPE_ELLIPSE,
+    SHAPE_RECTANGLE, shapes, tracks_data,
 )
 from extended_tracker.tracks.estimates import Estimates
 

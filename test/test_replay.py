@@ -246,6 +246,7 @@ def test_a_topic_without_scans_is_refused(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ['in']
 
 
+@pytest.mark.slow
 def test_bundled_bag_replays():
     import tempfile
 

@@ -18,11 +18,7 @@ from extended_tracker.filter.ggiw import cell_stats, gate_pairs, PairUpdate
 from extended_tracker.filter.mixture import IW_OFFSET, Mixture
 from extended_tracker.filter.state import FilterState, predict_state
 from extended_tracker.filter.update import (
-    gate_threshold,
-    pair_updates,
-    sensor_noise,
-    SensorTerms,
-    update,
+    gate_threshold, pair_updates, sensor_noise, SensorTerms, update,
 )
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.detection import detection_model, sparse_births
@@ -218,6 +214,7 @@ def test_centroid_offset_of_a_long_object_runs_along_it(occluder):
     assert err @ np.linalg.solve(band, err) <= 1.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('nudge, atol', [('bearing', 1e-9), ('ranges', 1e-4)])
 def test_tracks_do_not_hinge_on_the_last_bit(monkeypatch, nudge, atol):
     """

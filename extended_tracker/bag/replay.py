@@ -26,16 +26,8 @@ from ..errors import BagError
 from ..pipeline import PipelineState, step
 from ..report.messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
 from .bagio import (
-    build_message,
-    check_output,
-    MARKERS_TYPE,
-    message_typestore,
-    open_scans,
-    remove_stale_stages,
-    scan_data,
-    SCAN_TYPE,
-    staged_bag,
-    TRACKS_TYPE,
+    build_message, check_output, MARKERS_TYPE, message_typestore, open_scans, remove_stale_stages,
+    scan_data, SCAN_TYPE, staged_bag, TRACKS_TYPE,
 )
 
 SCAN_TOPIC = '/scan'

@@ -36,15 +36,8 @@ from ..sensing.scan import scan_to_points
 from ..sim.laser import crowd_scene, mixed_traffic_scene, Scene, simulate, tutorial_scene
 from ..tracker import filter_step, TrackerState
 from .timing import (
-    _growth_cases,
-    exp_ns,
-    growth_exponent,
-    machine_line,
-    peak_rss_mb,
-    reference_ms,
-    report_growth,
-    rss_mb,
-    timing_stats,
+    _growth_cases, exp_ns, growth_exponent, machine_line, peak_rss_mb, reference_ms, report_growth,
+    rss_mb, timing_stats,
 )
 
 

@@ -27,13 +27,7 @@ from .births import birth_intensity, birth_log_miss_factor, birth_prior
 from .cardinality import add_cardinality, poisson_log_pmf, thin_cardinality
 from .cphd import cphd_update, phd_update, UpdateWeights
 from .ggiw import (
-    cell_stats,
-    CellStats,
-    gate_covariance,
-    gate_pairs,
-    log_miss_factor,
-    PairUpdate,
-    update_pairs,
+    cell_stats, CellStats, gate_covariance, gate_pairs, log_miss_factor, PairUpdate, update_pairs,
 )
 from .hidden import held_p_d, out_of_sight
 from .mixture import Mixture

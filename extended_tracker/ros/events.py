@@ -61,8 +61,10 @@ class EventLog:
 
 class ScanGaps:
     """
-    Scans missing between the stamps of those that arrive, from the scanner's own period
-    (the median of the last ``window`` stamp steps, once ``min_steps`` are known).
+    Scans missing between the stamps of those that arrive, from the scanner's period:
+    the driver's ``scan_time`` where it gives one, else the shortest of the last
+    ``window`` stamp steps (once ``min_steps`` are known; in a burst that the queue
+    thinned, most steps are long and only the shortest is the scanner's).
 
     A step of ``k`` periods (k >= 1.5, rounded) means ``k - 1`` scans that never reached
     the callback: the subscription's queue dropped them while the node was busy (a burst
@@ -70,24 +72,24 @@ class ScanGaps:
     and repeats are the pipeline's events, not gaps.
     """
 
-    def __init__(self, window: int = 20, min_steps: int = 5, ratio: float = 1.5):
+    def __init__(self, window: int = 20, min_steps: int = 3, ratio: float = 1.5):
         self.window, self.min_steps, self.ratio = window, min_steps, ratio
         self._steps: list[int] = []
         self._last: int | None = None
         self.total = 0
 
-    def missing(self, stamp_ns: int) -> int:
-        """The scans missing just before the one stamped ``stamp_ns``."""
+    def missing(self, stamp_ns: int, scan_time: float = 0.0) -> int:
+        """The scans missing just before the one stamped ``stamp_ns`` (``scan_time``: the
+        scan period the driver gives, s; 0 when it gives none)."""
         last, self._last = self._last, stamp_ns
         if last is None or stamp_ns <= last:
             return 0
         step = stamp_ns - last
+        self._steps = (self._steps + [step])[-self.window:]
+        period = scan_time * 1e9 if scan_time > 0 else (
+            min(self._steps) if len(self._steps) >= self.min_steps else None)
         missing = 0
-        if len(self._steps) >= self.min_steps:
-            period = sorted(self._steps)[len(self._steps) // 2]
-            if step >= self.ratio * period:
-                missing = round(step / period) - 1
-        if not missing:
-            self._steps = (self._steps + [step])[-self.window:]
+        if period and step >= self.ratio * period:
+            missing = round(step / period) - 1
         self.total += missing
         return missing

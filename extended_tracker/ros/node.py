@@ -14,6 +14,7 @@ calls.
 from __future__ import annotations
 
 import difflib
+import math
 import sys
 import threading
 import time
@@ -227,8 +228,7 @@ class TrackerNode(Node):
             self._count(INTERNAL_ERROR, text, error=True)
             result = held(self.state, msg, INTERNAL_ERROR, text, arrival)
         self.scans += 1
-        if result.event != 'zero_stamp':           # arrival times jitter: no period there
-            self._check_gap(result.stamp_ns)
+        self._check_gap(msg)
         if result.event and result.event != INTERNAL_ERROR:
             self._count(result.event, result.error or result.event.replace('_', ' '))
         try:
@@ -245,9 +245,17 @@ class TrackerNode(Node):
         self.check_pace(result.stamp_ns, time.perf_counter() - t0)
         self.pub_diag.publish(self._diagnostics(result))
 
-    def _check_gap(self, stamp_ns: int) -> None:
-        """Count the scans that never reached the callback (event ``scans_dropped``)."""
-        missing = self.gaps.missing(stamp_ns)
+    def _check_gap(self, msg) -> None:
+        """Count the scans that never reached the callback (event ``scans_dropped``), from
+        the scanner's own stamps (a zero stamp, or an unreadable one, says nothing)."""
+        try:
+            stamp_ns = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+            scan_time = float(msg.scan_time)
+        except (AttributeError, TypeError, ValueError):
+            return
+        if stamp_ns <= 0:
+            return
+        missing = self.gaps.missing(stamp_ns, scan_time if math.isfinite(scan_time) else 0.0)
         if missing:
             self._count(SCANS_DROPPED, f'{missing} scan(s) missing before the one stamped '
                         f'{stamp_ns * 1e-9:.3f} s ({self.gaps.total} in all): the '
@@ -281,13 +289,17 @@ class TrackerNode(Node):
     def summary(self) -> str:
         """One line for the log at exit: scans handled and the events met."""
         events = ', '.join(f'{k} {v}' for k, v in sorted(self.counts.items())) or 'none'
-        return f'stopping after {self.scans} scans; events: {events}'
+        missing = f' ({self.gaps.total} more never reached it)' if self.gaps.total else ''
+        return f'stopping after {self.scans} scans{missing}; events: {events}'
 
     def _count(self, kind: str, text: str, error: bool = False) -> None:
         """Count an event; log it now if it is the first of its kind of reason."""
         line = self.events.record(kind, text)
-        if line is not None:
-            (self.get_logger().error if error else self.get_logger().warning)(line)
+        # one severity per call site: rclpy's logger refuses a site whose severity changes
+        if line is not None and error:
+            self.get_logger().error(line)
+        elif line is not None:
+            self.get_logger().warning(line)
 
     def log_summary(self) -> None:
         """Say what was counted since the last summary and not logged (the timer calls it

@@ -16,11 +16,7 @@ from ..filter.algebra2 import inv2, quad_form2
 from ..filter.mixture import Mixture
 from .scan import ScanPoints
 from .shadow import (
-    _estimate_shadow,
-    _occluders,
-    _seen,
-    ellipse_geometry,
-    visible_centroid_offset,
+    _estimate_shadow, _occluders, _seen, ellipse_geometry, visible_centroid_offset,
     visible_fraction,
 )
 
