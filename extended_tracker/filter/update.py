@@ -85,6 +85,7 @@ class Pairs:
     cell: np.ndarray
     updated: PairUpdate
     area: float
+    rate_scale: np.ndarray | None = None    # the components' rate scale the update used
 
     @property
     def n_cells(self) -> int:
@@ -212,7 +213,7 @@ def pair_updates(mix: Mixture, points: np.ndarray, cfg: TrackerConfig, sensor: S
                            stats, np.concatenate([cell, np.arange(n_cells)]), cfg.model.rho,
                            R, _pad(rate_scale, n_cells, 1.0), _pad(hidden, n_cells, 0.0),
                            _pad(offset, n_cells, 0.0))
-    return Pairs(points, pset, stats, comp, cell, updated, area)
+    return Pairs(points, pset, stats, comp, cell, updated, area, rate_scale)
 
 
 def _per_component_terms(sensor: SensorTerms):
@@ -302,8 +303,7 @@ def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.nd
         diag.held = int(np.count_nonzero(held))
     log_g = _detection_log_likelihoods(pred.mixture, pairs, kept, cfg, birth_unseen, diag)
     lonely = _lonely_cells(pairs.stats.n, log_g, cfg, diag.sparse_births)
-    rate_scale = _per_component_terms(sensor)[0]
-    weights = cardinality_update(pred, pairs, kept, log_g, p_d, rate_scale, held, lonely,
+    weights = cardinality_update(pred, pairs, kept, log_g, p_d, pairs.rate_scale, held, lonely,
                                  cfg, dt)
     diag.unexplained = int(not weights.possible)
     posterior, next_label, facts = assemble(pred, pairs, kept, weights, sensor.visibility,

@@ -66,8 +66,8 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
     pieces = _thin_pieces(est)
     if pieces is None:
         return est, 0
-    seg, major, minor, u, ends = pieces
-    roots = _touching(est, seg, u, major, ends, gap, speed)
+    seg, major, minor, u, half, ends = pieces
+    roots = _touching(est, seg, u, half, ends, gap, speed)
     if roots is None:
         return est, 0
     keep = np.ones(k, dtype=bool)
@@ -92,9 +92,9 @@ def group_segments(est: Estimates, seniority: np.ndarray, gap: float, speed: flo
 
 def _thin_pieces(est: Estimates):
     """
-    ``(seg, major, minor, u, ends)`` of the thin pieces among the estimates: their rows,
-    semi-axes, unit vectors along them and their rectangles' end points ((2s, 2): the
-    first ends, then the second); None if fewer than two.
+    ``(seg, major, minor, u, half, ends)`` of the thin pieces among the estimates: their
+    rows, semi-axes, unit vectors along them, their rectangles' half-lengths and end
+    points ((2s, 2): the first ends, then the second); None if fewer than two.
     """
     # the semi-major axis squared is at most the trace: people are ruled out at once
     X = est.X
@@ -112,17 +112,16 @@ def _thin_pieces(est: Estimates):
     half = (0.5 * np.sqrt(3.0)) * major                # half the rectangle's length
     centre = est.m[seg, :2]
     ends = np.concatenate([centre + half[:, None] * u, centre - half[:, None] * u])
-    return seg, major, minor, u, ends
+    return seg, major, minor, u, half, ends
 
 
-def _touching(est: Estimates, seg, u, major, ends, gap: float, speed: float):
+def _touching(est: Estimates, seg, u, half, ends, gap: float, speed: float):
     """
     The group (root piece) of each piece: pieces touch when an end of one comes within
     ``gap`` of the other piece (the nearest point of its segment, the nearer of the two
     ways round) and their velocities differ by at most ``speed``. None if none touch.
     """
     s = len(seg)
-    half = (0.5 * np.sqrt(3.0)) * major
     centre = est.m[seg, :2]
     rel = ends[:, None, :] - centre[None, :, :]                          # (2s, s, 2)
     t = np.clip(np.sum(rel * u[None], axis=2), -half[None], half[None])
