@@ -25,6 +25,7 @@ def run(scene, duration, cfg, seed=0):
     return out
 
 
+@pytest.mark.slow
 def test_walls_and_furniture_yield_no_tracks_and_a_stopped_person_stays_tracked():
     cfg = from_dict({})
     hist = run(walls_scene(), 20.0, cfg)
@@ -165,6 +166,7 @@ def test_neighbours_are_the_beams_within_margin_across_at_the_range():
             assert (r <= limit) == near
 
 
+@pytest.mark.slow
 def test_person_who_stops_in_open_space_keeps_one_id():
     """Nothing within range behind the person: the beams are free, the person is kept."""
     person = SimObject((12.0, 2.0), (-1.0, -0.2), t_start=2.0, stops=((6.0, 12.0),))
@@ -421,6 +423,7 @@ def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dr
         assert hist[k][1].expected_count < hist[k - 1][1].expected_count - 0.8 * gone, k
 
 
+@pytest.mark.slow
 def test_static_object_in_front_of_the_wall_is_learned_after_forget_time_though_tracked():
     """
     A box put down 4 m away in front of the wall at 3 s is tracked, and learned as
@@ -447,6 +450,7 @@ def test_static_object_in_front_of_the_wall_is_learned_after_forget_time_though_
     assert len(labels) == 1
 
 
+@pytest.mark.slow
 def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
     """
     A walker who stops in front of the wall, then is hidden for half a second (their label
@@ -787,6 +791,7 @@ def test_beams_near_tracks_in_one_pass_as_with_the_plain_distance(seed):
     assert np.array_equal(near, plain(centres, radius))
 
 
+@pytest.mark.slow
 def test_a_car_that_parks_is_learned_only_people_sized_tracks_protect():
     """A car drives in and parks: its track moved, but it is far larger than a person
     (``protect_semi_axis``), so its returns are learned like a wall's once it stands

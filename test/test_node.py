@@ -35,6 +35,7 @@ def harness():
     h.close()
 
 
+@pytest.mark.slow
 def test_tracks_against_simulator_truth(harness):
     data = simulate(tutorial_scene(), 6.0, seed=2)
     for scan, truth in data:
@@ -686,6 +687,7 @@ def test_yaml_descriptors_and_dataclass_agree():
     assert nested == to_dict(TrackerConfig())
 
 
+@pytest.mark.slow
 def test_node_and_replay_publish_the_same(tmp_path):
     from rosbags.rosbag2 import Reader
 
