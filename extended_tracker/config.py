@@ -229,6 +229,10 @@ class BackgroundConfig:
                                'it is tracked)', 'm', 0.0, 100.0)
     protect_semi_axis: float = _f(0.6, 'only tracks this small (semi-major) protect returns: '
                                   'people, not walls', 'm', 0.0, 100.0)
+    map_cell: float = _f(0.1, 'cell of the static map learned in the fixed frame while the '
+                         'scanner moves', 'm', 0.02, 1.0)
+    map_radius: float = _f(15.0, 'the static map reaches this far round the scanner (returns '
+                           'beyond it are never static)', 'm', 1.0, 100.0)
 
 
 @dataclass(frozen=True)
@@ -239,6 +243,23 @@ class TimeConfig:
                         lo_open=True)
     default_dt: float = _f(0.1, 'dt of the first scan after a reset', 's', 0.0, 10.0,
                            lo_open=True)
+
+
+@dataclass(frozen=True)
+class TfConfig:
+    """The fixed frame the tracks are kept in, and the transforms into it."""
+
+    fixed_frame: str = _f('odom', 'frame the tracks are kept and published in (the scanner '
+                          'may move in it); empty: the scan frame')
+    timeout: float = _f(0.2, 'how long a scan waits for its transform to the fixed frame',
+                        's', 0.0, 10.0)
+    max_tilt: float = _f(0.1, 'a scan plane tilted more than this from the fixed frame\'s '
+                         'plane is refused; less is projected onto it', 'rad', 0.0, 1.5)
+    jump_speed: float = _f(10.0, 'the scanner moving faster than this between two scans is a '
+                           'jump of the fixed frame (a localisation reset): tracks restart',
+                           'm/s', 0.0, 1e4, lo_open=True)
+    jump_turn_rate: float = _f(6.3, 'or turning faster than this', 'rad/s', 0.0, 1e4,
+                               lo_open=True)
 
 
 @dataclass(frozen=True)
@@ -254,6 +275,7 @@ class TrackerConfig:
     scan: ScanConfig = field(default_factory=ScanConfig)
     background: BackgroundConfig = field(default_factory=BackgroundConfig)
     timing: TimeConfig = field(default_factory=TimeConfig)
+    tf: TfConfig = field(default_factory=TfConfig)
 
     def __post_init__(self):
         validate(self)

@@ -33,6 +33,7 @@ with the background re-mapped to its beams by angle, event ``scan_layout_changed
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+import math
 import time
 
 import numpy as np
@@ -41,14 +42,23 @@ from .config import TrackerConfig
 from .diagnostics import Diagnostics
 from .errors import ScanError
 from .filter.state import FilterState, predict_state
+from .frames.pose import Placement, Pose2
 from .sensing.background import BackgroundState
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
+from .sensing.static_map import StaticMap
 from .stages import detect, drop_absorbed, remove_background, update_tracks
 from .tracks.estimates import Estimates
 from .tracks.record import TrackRecord
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
-          'unexplained_scan', 'zero_stamp', 'scan_layout_changed')
+          'unexplained_scan', 'zero_stamp', 'scan_layout_changed', 'frame_jump')
+
+#: the scanner moved less than this from where the per-beam background was learned (m,
+#: rad) still stands there: odometry's jitter on a parked robot does not reset it
+STILL_DISTANCE = 0.05
+STILL_ANGLE = 0.01
+#: a jump of the fixed frame is at least this far (m, rad), whatever the scan period
+MIN_JUMP = 0.2
 
 
 @dataclass(frozen=True)
@@ -72,6 +82,13 @@ class PipelineState:
         Labels seen to move: their returns are never learned as background.
     scans, elapsed : int, float
         Scans processed and seconds covered since start-up.
+    static_map : StaticMap or None
+        Static structure learned in the fixed frame (a placed scanner).
+    pose, anchor : Pose2 or None
+        The scanner's last pose in the fixed frame, and where the per-beam background was
+        learned.
+    moving : bool
+        The scanner has moved in the fixed frame: the static map drops returns.
 
     """
 
@@ -84,6 +101,10 @@ class PipelineState:
     moved: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     scans: int = 0
     elapsed: float = 0.0
+    static_map: StaticMap | None = None
+    pose: Pose2 | None = None
+    anchor: Pose2 | None = None
+    moving: bool = False
 
     @staticmethod
     def initial(cfg: TrackerConfig) -> 'PipelineState':
@@ -115,6 +136,9 @@ class StepResult:
         scan, the gap or the step back in time, with the figures.
     processing_time : float
         Seconds spent in :func:`step`.
+    pose : Pose2 or None
+        The scanner's pose in the fixed frame (None: tracked in the scan frame, or the
+        scan not used).
 
     """
 
@@ -129,12 +153,17 @@ class StepResult:
     event: str | None = None
     error: str | None = None
     processing_time: float = 0.0
+    pose: Pose2 | None = None
 
 
-def step(state: PipelineState, scan, cfg: TrackerConfig,
-         arrival_ns: int | None = None) -> tuple[PipelineState, StepResult]:
+def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None = None,
+         place: Placement | None = None) -> tuple[PipelineState, StepResult]:
     """
     Carry one LaserScan-like message through the whole chain.
+
+    ``place``, when given, is where the scan was taken: the tracks are kept in its fixed
+    frame, the scanner at its pose there (the caller looked it up at the scan's stamp).
+    Without it they are kept in the scan's own frame, the scanner standing still.
 
     convert -> background -> predict -> p_D -> pair updates -> update -> track management.
 
@@ -147,32 +176,53 @@ def step(state: PipelineState, scan, cfg: TrackerConfig,
     ``result.diagnostics`` holds the counts of every stage (:class:`Diagnostics`).
     """
     t0 = time.perf_counter()
-    scan_in = _accept(state, scan, cfg, arrival_ns, t0)
+    scan_in = _accept(state, scan, cfg, arrival_ns, t0, place)
     if isinstance(scan_in, StepResult):
         return state, scan_in
     sp, dt, event, error = scan_in.points, scan_in.dt, scan_in.event, scan_in.error
+    pose = place.pose if place is not None else None
+    state = _anchored(state, pose, scan_in.event == 'frame_jump')
     diag = _scan_counts(sp)
     if _layout_changed(state.background, sp, cfg):
         event, error = _with_event(event, error, 'scan_layout_changed',
                                    _layout_change(state.background, sp))
-    background, points, bg_points, learned, moved = remove_background(
-        state, scan_in.tracks, sp, dt, cfg, diag)
+    fg = remove_background(state, scan_in.tracks, sp, dt, cfg, diag, pose)
     pred = predict_state(scan_in.filter, dt, cfg)
-    pred = drop_absorbed(pred, learned, points, cfg, diag, first_new=scan_in.filter.next_label)
-    pred, vis = detect(pred, sp, cfg, diag)
-    filt, tracks, estimates = update_tracks(pred, scan_in.tracks, points, sp, vis, cfg, dt,
-                                            diag)
+    pred = drop_absorbed(pred, fg.learned, fg.points, cfg, diag,
+                         first_new=scan_in.filter.next_label)
+    pred, vis = detect(pred, sp, cfg, diag, pose)
+    filt, tracks, estimates = update_tracks(pred, scan_in.tracks, fg.points, sp, vis, cfg, dt,
+                                            diag, pose)
     if diag.unexplained:
         event, error = _with_event(event, error, 'unexplained_scan',
-                                   _unexplained(len(points), cfg))
-    new_state = replace(state, filter=filt, tracks=tracks, background=background,
-                        last_stamp_ns=scan_in.stamp_ns, frame_id=scan_in.frame_id,
-                        last_estimates=estimates, moved=moved, scans=state.scans + 1,
-                        elapsed=state.elapsed + dt)
+                                   _unexplained(len(fg.points), cfg))
+    new_state = replace(state, filter=filt, tracks=tracks, background=fg.background,
+                        static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
+                        frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
+                        scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose)
     card, mean = _card_of(new_state)
     return new_state, StepResult(scan_in.stamp_ns, scan_in.frame_id, estimates, card, mean,
-                                 points, bg_points, diag, event, error,
-                                 time.perf_counter() - t0)
+                                 fg.points, fg.background_points, diag, event, error,
+                                 time.perf_counter() - t0, pose)
+
+
+def _anchored(state: PipelineState, pose: Pose2 | None, jumped: bool) -> PipelineState:
+    """
+    The state with its per-beam background valid where the scanner stands: learned anew
+    (and the static map put to use) once the scanner moved from where it was learned.
+    After a jump of the fixed frame the scanner stands where it stood, but the static
+    map, learned in the old frame, is dropped.
+    """
+    if pose is None:
+        return state
+    if jumped:
+        return replace(state, anchor=pose, static_map=None)
+    if state.anchor is None:
+        return replace(state, anchor=pose)
+    metres, radians = state.anchor.distance_to(pose)
+    if metres <= STILL_DISTANCE and radians <= STILL_ANGLE:
+        return state
+    return replace(state, anchor=pose, background=None, moving=True)
 
 
 @dataclass(frozen=True)
@@ -190,11 +240,13 @@ class _Accepted:
     error: str | None
 
 
-def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0):
+def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
+            place: Placement | None):
     """
     Read the scan's header and beams and place it in time: either the held result of a
     scan that is not used (malformed, foreign frame, repeated stamp), or the scan
-    :class:`_Accepted`, the filter and the record reset on a step back in time or a gap.
+    :class:`_Accepted`, the filter and the record reset on a step back in time, a gap or
+    a jump of the fixed frame.
     """
     try:
         now = stamp_ns(scan)
@@ -208,6 +260,8 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0):
                             cfg.scan.range_max_inclusive)
     except ScanError as err:
         return _repeat(state, now, frame, 'malformed_scan', str(err), t0)
+    if place is not None:
+        frame = place.frame
     if state.frame_id is not None and frame != state.frame_id:
         # tracks in another frame are not comparable: the previous estimates stand
         return _repeat(state, now, state.frame_id, 'foreign_frame',
@@ -216,6 +270,8 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0):
         return _repeat(state, now, frame, 'repeated_stamp',
                        'the same stamp as the previous scan: not used again', t0)
     dt, event, error = scan_period(state.last_stamp_ns, now, cfg)
+    if event is None and place is not None:
+        event, error = frame_jump(state.pose, place.pose, dt, cfg)
     filt, tracks = state.filter, state.tracks
     if event is not None:
         filt, tracks = _reset(filt, cfg), TrackRecord()
@@ -248,6 +304,24 @@ def scan_period(last_ns: int | None, now_ns: int, cfg: TrackerConfig):
             f'{dt:.3f} s since the previous scan, over timing.max_gap '
             f'({cfg.timing.max_gap:g} s): tracks restarted')
     return dt, None, None
+
+
+def frame_jump(last: Pose2 | None, pose: Pose2, dt: float, cfg: TrackerConfig):
+    """
+    ``(event, error)`` of a scanner pose that moved from the last scan's faster than
+    ``tf.jump_speed`` or turned faster than ``tf.jump_turn_rate`` (and at least
+    :data:`MIN_JUMP`): the fixed frame jumped (a localisation reset, a relocalised map),
+    and tracks carried across would smear. ``(None, None)`` otherwise.
+    """
+    if last is None:
+        return None, None
+    metres, radians = last.distance_to(pose)
+    if (metres > max(cfg.tf.jump_speed * dt, MIN_JUMP)
+            or radians > max(cfg.tf.jump_turn_rate * dt, MIN_JUMP)):
+        return 'frame_jump', (f'the scanner moved {metres:.2f} m and turned '
+                              f'{math.degrees(radians):.0f} deg in the fixed frame in '
+                              f'{dt:.3f} s (a localisation reset?): tracks restarted')
+    return None, None
 
 
 def _scan_counts(sp: ScanPoints) -> Diagnostics:
@@ -311,6 +385,26 @@ def held(state: PipelineState, scan, event: str, error: str,
     return _repeat(state, now, state.frame_id or frame, event, error, time.perf_counter())
 
 
+def step_placed(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None,
+                placed=None) -> tuple[PipelineState, StepResult]:
+    """
+    :func:`step` on a scan out of :class:`frames.placing.ScanPlacer` (``placed``; without
+    it, the scan is tracked in its own frame), the call of the node and the replay alike
+    (:func:`step` is looked up here at each call: a test can stand in for it). A dropped
+    scan is
+    answered with the previous estimates and its event; one that moves the tracks to the
+    fixed frame first restarts them (ids continue). The queue's notices (which frame the
+    tracks are in) are the caller's to say; they are no event of the scan.
+    """
+    if placed is None:
+        return step(state, scan, cfg, arrival_ns)
+    if placed.dropped:
+        return state, held(state, scan, placed.event, placed.error, arrival_ns)
+    if placed.event == 'fixed_frame_found':
+        state = reset(state, cfg)
+    return step(state, scan, cfg, arrival_ns, placed.place)
+
+
 def _scan_time(stamp: int, arrival_ns: int | None) -> tuple[int, bool]:
     """The time a scan is taken at, and whether its stamp was zero and the arrival time
     (when known) stands in for it."""
@@ -326,10 +420,10 @@ def _reset(filt: FilterState, cfg: TrackerConfig) -> FilterState:
 def reset(state: PipelineState, cfg: TrackerConfig) -> PipelineState:
     """
     Start over as at start-up, with labels continuing after the old ones (ids are never
-    reused): no tracks, no learned background (the warm-up runs again), no frame lock.
-    For a scanner that was moved, or a new session in the same run.
+    reused): no tracks, no learned background or static map (the warm-up runs again), no
+    frame lock. For a scanner that was moved, or a new session in the same run.
     """
     return PipelineState(_reset(state.filter, cfg), last_stamp_ns=state.last_stamp_ns)
 
 
-__all__ = ['PipelineState', 'StepResult', 'step', 'held', 'reset', 'EVENTS', 'ScanPoints']
+__all__ = ['PipelineState', 'StepResult', 'step', 'step_placed', 'held', 'reset', 'EVENTS', 'ScanPoints']

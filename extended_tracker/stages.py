@@ -7,7 +7,7 @@ sensor model, then track management.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,11 +19,13 @@ from .filter.cardinality import thin_cardinality
 from .filter.ggiw import gate_covariance, gate_distance2
 from .filter.state import FilterState
 from .filter.update import gate_threshold, pair_updates, sensor_noise, SensorTerms, update
-from .sensing.background import beams_near_tracks, update_background
+from .frames.pose import kinematics_to_inner, mixture_to_inner, Pose2
+from .sensing.background import BackgroundState, beams_near_tracks, update_background
 from .sensing.detection import (
     detection_model, pair_detection_probability, sparse_births, Visibility,
 )
 from .sensing.scan import ScanPoints
+from .sensing.static_map import StaticMap, update_static_map
 from .tracks.manage import manage_tracks
 from .tracks.record import find_sorted, TrackRecord
 
@@ -31,8 +33,25 @@ if TYPE_CHECKING:                                   # the pipeline imports these
     from .pipeline import PipelineState
 
 
+@dataclass(frozen=True)
+class Foreground:
+    """
+    What :func:`remove_background` leaves: the learned per-beam ``background`` and
+    ``static_map``, the foreground ``points`` and the ``background_points`` (fixed frame),
+    the returns ``learned`` as static this scan, and the labels seen to move.
+    """
+
+    background: BackgroundState | None
+    static_map: StaticMap | None
+    points: np.ndarray
+    background_points: np.ndarray
+    learned: np.ndarray
+    moved: np.ndarray
+
+
 def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints, dt: float,
-                      cfg: TrackerConfig, diag: Diagnostics):
+                      cfg: TrackerConfig, diag: Diagnostics,
+                      pose: Pose2 | None = None) -> Foreground:
     """
     Drop static returns; never learn those of tracks that have moved.
 
@@ -42,27 +61,40 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     the filter runs predict-only steps while the background is learned, so walls are
     never tracked.
 
-    Returns the background, the foreground points, the background points, the returns
-    whose beams were learned this scan and the labels seen to move.
+    With the scanner's ``pose`` in a fixed frame, the static map is learned there too
+    (:mod:`sensing.static_map`) and, once the scanner has moved, drops the returns on
+    static structure with the per-beam background (learned anew wherever the scanner
+    stops). The points come back in the fixed frame.
     """
     empty = np.zeros((0, 2))
+    view = pose or Pose2()
     if not cfg.background.enabled or not len(sp.angles):
-        return state.background, sp.points, empty, empty, state.moved
+        return Foreground(state.background, state.static_map, view.to_outer(sp.points), empty,
+                          empty, state.moved)
     est, bgc = state.last_estimates, cfg.background
     travel = tracks.confirmed_travel(est.label, cfg.extraction)
     moved = np.union1d(state.moved[find_sorted(tracks.shown, state.moved)[1]],
                        est.label[travel >= bgc.moved_distance])
     major = est.axes()[0] if len(est) else np.zeros(0)
     guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
-    protect, near = beams_near_tracks(sp, est.m[:, :2], major, bgc.track_gate, guard)
+    protect, near = beams_near_tracks(sp, view.to_inner(est.m[:, :2]), major, bgc.track_gate,
+                                      guard)
     background, keep = update_background(state.background, sp, dt, bgc, protect, near)
-    points, bg_points = sp.points[keep], sp.points[~keep]
-    learned = sp.points[background.learned[sp.beam]]
+    learned = background.learned[sp.beam]
+    static_map = state.static_map
+    if pose is not None:
+        static_map, on_map, map_learned = update_static_map(static_map, sp, pose, dt, bgc,
+                                                            protect)
+        if state.moving:
+            keep &= ~on_map
+            learned |= map_learned
     diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
+    points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
     if state.elapsed + dt <= bgc.warmup:
         diag.warmup = 1
         bg_points, points = np.vstack([bg_points, points]), empty
-    return background, points, bg_points, learned, moved
+    return Foreground(background, static_map, points, bg_points,
+                      view.to_outer(sp.points[learned]), moved)
 
 
 def drop_absorbed(pred: FilterState, learned: np.ndarray, points: np.ndarray,
@@ -100,8 +132,8 @@ def absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) -
     return gated(learned) & ~gated(points)
 
 
-def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig,
-           diag: Diagnostics) -> tuple[FilterState, Visibility]:
+def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig, diag: Diagnostics,
+           pose: Pose2 | None = None) -> tuple[FilterState, Visibility]:
     """
     The detection model of the predicted components; drop those that are no object in
     view.
@@ -110,8 +142,14 @@ def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig,
     rather than left to coast forever with p_D = 0. So are components the sensor would
     stand in, and those in view that expect far fewer returns than the beams they span,
     made of clutter: not objects, so their weight leaves the cardinality too.
+
+    The model reads the components in the scanner's frame (at ``pose`` in the fixed
+    frame); the centroid offsets it gives are turned back into the fixed frame.
     """
-    vis = detection_model(pred.mixture, sp, cfg)
+    view = pose or Pose2()
+    vis = detection_model(mixture_to_inner(view, pred.mixture), sp, cfg)
+    if vis.offset is not None:
+        vis = replace(vis, offset=view.vectors_to_outer(vis.offset))
     if vis.outside is None:
         return pred, vis
     drop = vis.outside | vis.at_sensor | vis.sparse
@@ -130,24 +168,27 @@ def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig,
 
 def update_tracks(pred: FilterState, tracks: TrackRecord, points: np.ndarray,
                   sp: ScanPoints, vis: Visibility, cfg: TrackerConfig, dt: float,
-                  diag: Diagnostics):
+                  diag: Diagnostics, pose: Pose2 | None = None):
     """
     The filter update with the scan's detection model, then track management.
 
     The sensor model is evaluated on what the filter's pair updates return: each pair's
-    p_D where its cell puts the object, and which births the scan could not have seen.
+    p_D where its cell puts the object, and which births the scan could not have seen,
+    both read in the scanner's frame (at ``pose`` in the fixed frame).
     """
+    view = pose or Pose2()
     sensor = SensorTerms(vis.p_d, vis.rate_scale, vis.visible, vis.offset, vis.shadowed)
-    clutter = (sp.beam_clutter_log_density(points) if cfg.model.clutter_density == 'beam'
-               else None)
+    clutter = (sp.beam_clutter_log_density(view.to_inner(points))
+               if cfg.model.clutter_density == 'beam' else None)
     pairs = pair_updates(pred.mixture, points, cfg, sensor, sp.area, clutter)
-    pair_p_d = pair_detection_probability(pred.mixture, pairs.comp, pairs.m, pairs.P, sp,
-                                          cfg, vis.p_d)
+    m_in, P_in, _ = kinematics_to_inner(view, pairs.m, pairs.P, None)
+    pair_p_d = pair_detection_probability(mixture_to_inner(view, pred.mixture), pairs.comp,
+                                          m_in, P_in, sp, cfg, vis.p_d)
     # the sensor is asked only about the births no pair it could have seen explains
     unseen = np.zeros(pairs.n_cells, dtype=bool)
     free = pairs.free_birth_cells(pair_p_d, cfg.birth.min_points)
     if len(free):
-        unseen[free] = sparse_births(pairs.births(free), sp, cfg)
+        unseen[free] = sparse_births(mixture_to_inner(view, pairs.births(free)), sp, cfg)
     filt, facts = update(pred, pairs, sensor, pair_p_d, cfg, dt, diag, birth_unseen=unseen,
                          confirmed=tracks.confirmed_labels(cfg.extraction))
     return manage_tracks(filt, tracks, facts, cfg, dt, pred.next_label, diag)

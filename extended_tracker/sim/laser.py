@@ -1,5 +1,5 @@
 """
-Ray-casting simulator of a stationary planar laser scanner.
+Ray-casting simulator of a planar laser scanner, standing still or carried along a path.
 
 Objects are ellipses or rectangles moving with constant velocity or a coordinated turn,
 optionally standing still for a while; static walls are line segments. Every beam is
@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ..frames.pose import Pose2
 from ..sensing.scan import Header, ScanData, Stamp
 
 
@@ -117,12 +118,45 @@ class LaserSpec:
 
 
 @dataclass(frozen=True)
+class Drive:
+    """
+    A robot's path in the fixed frame: keyframes ``(t, x, y, yaw)`` of its base,
+    interpolated linearly between them (yaw the shorter way round), held after the last;
+    and the scanner's ``mount`` on the base.
+    """
+
+    keys: tuple
+    mount: Pose2 = Pose2()
+    base_frame: str = 'base_link'
+    fixed_frame: str = 'odom'
+
+    def base_pose(self, t: float) -> Pose2:
+        k = np.asarray(self.keys, float)
+        i = int(np.clip(np.searchsorted(k[:, 0], t) - 1, 0, len(k) - 2)) if len(k) > 1 else 0
+        if len(k) == 1 or t >= k[-1, 0]:
+            return Pose2(*k[-1 if t >= k[-1, 0] else 0, 1:])
+        s = min(max((t - k[i, 0]) / (k[i + 1, 0] - k[i, 0]), 0.0), 1.0)
+        turn = math.remainder(k[i + 1, 3] - k[i, 3], 2 * math.pi)
+        x, y = k[i, 1:3] + s * (k[i + 1, 1:3] - k[i, 1:3])
+        return Pose2(float(x), float(y), float(k[i, 3] + s * turn))
+
+    def pose(self, t: float) -> Pose2:
+        """The scanner's pose in the fixed frame at ``t``."""
+        return self.base_pose(t).compose(self.mount)
+
+
+@dataclass(frozen=True)
 class Scene:
-    """Objects, walls (segments ((x0, y0), (x1, y1))) and the scanner."""
+    """Objects, walls (segments ((x0, y0), (x1, y1))) and the scanner (carried along
+    ``drive`` when given, else at the origin of the frame the walls are in)."""
 
     objects: tuple
     walls: tuple = ()
     laser: LaserSpec = field(default_factory=LaserSpec)
+    drive: Drive | None = None
+
+    def pose(self, t: float) -> Pose2 | None:
+        return None if self.drive is None else self.drive.pose(t)
 
 
 @dataclass(frozen=True)
@@ -223,18 +257,24 @@ def simulated_scans(scene: Scene, duration: float, seed: int,
     n_scans = int(round(duration * L.rate_hz))
     for k in range(n_scans):
         t = k / L.rate_hz
-        r = wall_range.copy()
+        pose = scene.pose(t) or Pose2()
+        if pose.is_identity:
+            r = wall_range.copy()
+        else:                                   # the world as the scanner sees it
+            local = pose.to_inner(walls.reshape(-1, 2)).reshape(-1, 2, 2)
+            r = _ray_segments(d, local[:, 0], local[:, 1])
         owner = np.full(L.n_beams, -1)
         truth = []
         for i, ob in enumerate(scene.objects):
             if not ob.alive(t):
                 continue
             c, vel, h = ob.state(t)
+            c_in, h_in = pose.to_inner(c[None, :])[0], h - pose.yaw
             if ob.shape == 'rectangle':
-                p0, p1 = _rectangle_segments(c, h, ob.a, ob.b)
+                p0, p1 = _rectangle_segments(c_in, h_in, ob.a, ob.b)
                 hit = _ray_segments(d, p0, p1)
             else:
-                hit = _ray_ellipse(d, c, ob.extent(h))
+                hit = _ray_ellipse(d, c_in, ob.extent(h_in))
             nearer = hit < r
             r = np.where(nearer, hit, r)
             owner = np.where(nearer, i, owner)
