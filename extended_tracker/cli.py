@@ -1,12 +1,13 @@
 """
 ``extended-tracker``: the user command line.
 
-    extended-tracker replay INPUT --output OUTPUT [--scan-topic T] [--config YAML | --preset P]
+    extended-tracker replay INPUT --output OUTPUT [--scan-topic T] [--fixed-frame F]
+                            [--config YAML | --preset P]
                             [--plot PNG]
     extended-tracker simulate OUTPUT [--scene NAME] [--seed N] [--duration S]
     extended-tracker real [--data DIR] [--out DIR] [--config YAML]
     extended-tracker evaluate OUTPUT_BAG --truth TRUTH [--plot PNG]
-    extended-tracker results [--readme README.md]
+    extended-tracker results [--readme doc/results.md]
     extended-tracker bench [--quick] [--memory N] [--png PNG] [--profile]
 """
 
@@ -62,7 +63,7 @@ def cmd_replay(args) -> int:
 
     cfg = load_config(args.config, args.preset)
     summary = replay(args.input, args.output, cfg, args.scan_topic, args.plot,
-                     progress=not args.quiet)
+                     progress=not args.quiet, fixed_frame=args.fixed_frame)
     for line in summary.lines():
         print(line)
     print(f'output bag       {summary.output}')
@@ -71,7 +72,7 @@ def cmd_replay(args) -> int:
     return 0
 
 
-SCENES = ('demo', 'tutorial', 'occlusion', 'mixed_traffic', 'walls')
+SCENES = ('demo', 'tutorial', 'occlusion', 'mixed_traffic', 'walls', 'corridor_drive')
 
 
 def cmd_simulate(args) -> int:
@@ -91,6 +92,20 @@ def _replay_output(bag: Path) -> bool:
         return meta.is_file() and TRACKS_TYPE in meta.read_text(errors='replace')
     except OSError:
         return False
+
+
+def _print_real(label: str, s, config: str) -> None:
+    """One bag's row of ``real``, with its events, renamed frames and fixed frame."""
+    print(f'{label:48s} {s.scans:6d} {s.valid_detections / max(s.scans, 1):8.1f} '
+          f'{s.distinct_ids:5d} {s.moving_ids:6d} {s.mean_count:6.2f} '
+          f'{s.median_ms:7.2f} {s.p99_ms:7.2f}  {config}')
+    for event, count in sorted(s.events.items()):
+        why = s.first_reasons.get(event)
+        print(f'  {event} {count}' + (f' (first: {why})' if why else ''))
+    for old, new in sorted(s.renamed_frames.items()):
+        print(f'  frame_id {old!r} written as {new!r}')
+    if s.fixed_frame:
+        print(f'  tracked in {s.fixed_frame} ({s.frame_why})')
 
 
 def cmd_real(args) -> int:
@@ -139,15 +154,7 @@ def cmd_real(args) -> int:
             failed += 1
             print(f'{label:48s} not replayed: {err}')
             continue
-        print(f'{label:48s} {s.scans:6d} {s.valid_detections / max(s.scans, 1):8.1f} '
-              f'{s.distinct_ids:5d} {s.moving_ids:6d} {s.mean_count:6.2f} '
-              f'{s.median_ms:7.2f} {s.p99_ms:7.2f}  '
-              f'{"--config" if given else (name or "defaults")}')
-        for event, count in sorted(s.events.items()):
-            why = s.first_reasons.get(event)
-            print(f'  {event} {count}' + (f' (first: {why})' if why else ''))
-        for old, new in sorted(s.renamed_frames.items()):
-            print(f'  frame_id {old!r} written as {new!r}')
+        _print_real(label, s, '--config' if given else (name or 'defaults'))
     print(f'bags and PNGs in {out}')
     if failed:
         print(f'{failed} of {len(bags)} not replayed', file=sys.stderr)
@@ -217,6 +224,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument('input', help='ROS 2 bag folder (sqlite3 or MCAP) or ROS 1 .bag')
     r.add_argument('--output', '-o', required=True, help='new ROS 2 bag folder (MCAP)')
     r.add_argument('--scan-topic', help='LaserScan topic when the bag has several')
+    r.add_argument('--fixed-frame', metavar='FRAME',
+                   help='frame to track in, linked to the scan frame by the bag\'s /tf and '
+                        '/tf_static ("" for the scan frame; default: tf.fixed_frame, odom, '
+                        'where the bag links the scan frame to it, else the scan frame)')
     r.add_argument('--config', help='YAML config: plain sections, or a ROS 2 parameter file '
                                     '(the entries for the extended_tracker node)')
     r.add_argument('--preset', choices=sorted(PRESETS),
@@ -251,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
                                  '.svg, .pdf, ... by the suffix)')
     e.set_defaults(func=cmd_evaluate)
     res = sub.add_parser('results', help='run the scenario suite (CPHD/PHD x p_D models)')
-    res.add_argument('--readme', help='write the table into this README between markers')
+    res.add_argument('--readme', help='write the table into this file between its markers')
     res.set_defaults(func=cmd_results)
     # add_help=False: bench's options, --help included, go to the benchmark's own parser
     b = sub.add_parser('bench', add_help=False,

@@ -334,7 +334,7 @@ def test_an_undecodable_scan_record_stops_with_its_topic(tmp_path):
         w.write(c, 1, store.serialize_cdr(build_message(store, SCAN_TYPE, scan_data(scan)),
                                           SCAN_TYPE))
         w.write(c, 2, b'\x00\x01\x00\x00' + b'\xff' * 12)      # a CDR header, then junk
-    with pytest.raises(BagError, match='cannot decode a LaserScan on /scan'):
+    with pytest.raises(BagError, match='cannot decode a sensor_msgs/msg/LaserScan on /scan'):
         replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
     assert not (tmp_path / 'out').exists() and not list(tmp_path.glob('.out.partial*'))
 
@@ -631,7 +631,7 @@ def test_a_signal_whose_exception_is_lost_still_stops_the_command(command, sig, 
             argv = ['replay', str(tmp_path / 'in'), '--output', str(tmp_path / 'out'),
                     '--quiet']
         else:
-            readme = (ROOT / 'README.md').read_text()
+            readme = (ROOT / 'doc' / 'results.md').read_text()
             (tmp_path / 'in').write_text(readme)
             argv = ['results', '--readme', str(tmp_path / 'in')]
     before = {s: signal.getsignal(getattr(signal, s)) for s in STOPS}

@@ -23,12 +23,16 @@ import numpy as np
 from .. import stopping
 from ..config import TrackerConfig
 from ..errors import BagError
-from ..pipeline import PipelineState, step
+from ..frames.buffer import TransformBuffer
+from ..frames.placing import ScanPlacer
+from ..pipeline import PipelineState, step, step_placed
 from ..report.messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
+from ..sensing.scan import stamp_ns
 from .bagio import (
     build_message, check_output, MARKERS_TYPE, message_typestore, open_scans, remove_stale_stages,
     scan_data, SCAN_TYPE, staged_bag, TRACKS_TYPE,
 )
+from .transforms import feed, is_static, linked, links, tf_connections, tf_data, TF_TYPE
 
 SCAN_TOPIC = '/scan'
 TRACKS_TOPIC = '/tracks'
@@ -54,12 +58,15 @@ class ReplaySummary:
     topic: str = ''
     output: str = ''
     plot: str = ''
+    fixed_frame: str = ''               # '' : the scan frame
+    frame_why: str = ''
 
     def lines(self) -> list[str]:
         per_scan = self.valid_detections / max(self.scans, 1)
         ev = ', '.join(f'{k} {v}' for k, v in sorted(self.events.items())) or 'none'
         return [
             f'scans            {self.scans} (topic {self.topic})',
+            f'tracked in       {self.fixed_frame or "the scan frame"} ({self.frame_why})',
             f'valid detections {self.valid_detections} ({per_scan:.1f} per scan)',
             f'distinct ids     {self.distinct_ids} ({self.moving_ids} moved more than 1 m)',
             f'objects per scan mean {self.mean_count:.2f}, max {self.max_count}',
@@ -104,40 +111,127 @@ def ros2_frame_id(frame_id: str) -> str:
 
 
 def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None,
-                   renamed_frames: dict | None = None):
+                   renamed_frames: dict | None = None, fixed_frame: str = '',
+                   transforms: list | None = None):
     """
     Yield ``(scan_message, StepResult)`` for every LaserScan of a bag, in time order.
 
     A scan whose ``frame_id`` has ROS 1's leading ``/`` is tracked and yielded with the
     frame as ROS 2 names it (:func:`ros2_frame_id`); ``renamed_frames``, when given,
     collects each such name as read and as used.
+
+    With a ``fixed_frame`` (:func:`choose_fixed_frame`) the bag's ``/tf`` and
+    ``/tf_static`` are read with the scans, and each scan is placed in the fixed frame at
+    its stamp (:class:`frames.placing.ScanPlacer`, waiting ``tf.timeout`` of record time
+    for its transform); ``transforms``, when given, collects ``(topic, record_ns, msg)``
+    of every transform message read, for the output bag.
     """
     reader, conns = open_scans(input_path, scan_topic)
+    tf_conns = tf_connections(reader) if fixed_frame else []
+    buffer = TransformBuffer(cache_ns=None)
+    placer = ScanPlacer(buffer.lookup, fixed_frame, cfg.tf.timeout, cfg.tf.max_tilt)
     try:
         state = PipelineState.initial(cfg)
-        for conn, record_ns, raw in reader.messages(connections=conns):
+        for conn, record_ns, raw in reader.messages(connections=conns + tf_conns):
             stopping.check()
-            try:
-                scan = reader.deserialize(raw, conn.msgtype)
-            except Exception as err:  # a corrupt record: say which, stop cleanly
-                msg = f'cannot decode a LaserScan on {conn.topic}: {err}'
-                raise BagError(msg) from err
-            frame = ros2_frame_id(scan.header.frame_id)
-            if frame != scan.header.frame_id:
-                if renamed_frames is not None:
-                    renamed_frames.setdefault(scan.header.frame_id, frame)
-                scan.header.frame_id = frame
-            # the record time stands in for a zero header stamp (event zero_stamp)
-            state, result = step(state, scan, cfg, arrival_ns=record_ns)
-            yield scan, result
+            msg = _decode(reader, raw, conn)
+            if conn in tf_conns:
+                feed(buffer, msg, is_static(conn))
+                if transforms is not None:
+                    transforms.append((conn.topic, record_ns, msg))
+            elif not fixed_frame:
+                # the record time stands in for a zero header stamp (event zero_stamp)
+                state, result = step(state, _renamed(msg, renamed_frames), cfg,
+                                     arrival_ns=record_ns)
+                yield msg, result
+                continue
+            elif _frame_of(msg) is None:        # unreadable: step says so (malformed_scan)
+                state, result = step(state, msg, cfg, arrival_ns=record_ns)
+                yield msg, result
+                continue
+            else:
+                scan = _renamed(msg, renamed_frames)
+                placer.push(scan, _stamp_or(scan, record_ns), scan.header.frame_id, record_ns)
+            for placed in placer.ready(record_ns):
+                state, result = step_placed(state, placed.scan, cfg, placed.arrival_ns, placed)
+                yield placed.scan, result
+        for placed in placer.flush():
+            state, result = step_placed(state, placed.scan, cfg, placed.arrival_ns, placed)
+            yield placed.scan, result
     finally:
         reader.close()
 
 
+def _decode(reader, raw, conn):
+    try:
+        return reader.deserialize(raw, conn.msgtype)
+    except Exception as err:  # a corrupt record: say which, stop cleanly
+        raise BagError(f'cannot decode a {conn.msgtype} on {conn.topic}: {err}') from err
+
+
+def _renamed(scan, renamed_frames):
+    frame = ros2_frame_id(scan.header.frame_id)
+    if frame != scan.header.frame_id:
+        if renamed_frames is not None:
+            renamed_frames.setdefault(scan.header.frame_id, frame)
+        scan.header.frame_id = frame
+    return scan
+
+
+def _frame_of(scan) -> str | None:
+    try:
+        frame = scan.header.frame_id
+    except AttributeError:
+        return None
+    return frame if isinstance(frame, str) else None
+
+
+def _stamp_or(scan, record_ns: int) -> int:
+    """The scan's stamp, or its record time when the stamp is zero."""
+    try:
+        stamp = stamp_ns(scan)
+    except (AttributeError, TypeError, ValueError):
+        return record_ns
+    return stamp or record_ns
+
+
+def choose_fixed_frame(input_path, scan_topic: str | None, cfg: TrackerConfig,
+                       asked: str | None = None) -> tuple[str, str]:
+    """
+    ``(frame, why)``: the frame a replay tracks in. ``asked`` (``--fixed-frame``) when
+    given ('' for the scan frame); else ``tf.fixed_frame`` when the bag's transforms link
+    the scan frame to it, else the scan frame ('').
+    """
+    reader, conns = open_scans(input_path, scan_topic)
+    try:
+        tf_conns = tf_connections(reader)
+        tree = links(reader, tf_conns) if tf_conns else {}
+        frame = ''
+        for conn, _, raw in reader.messages(connections=conns):
+            frame = ros2_frame_id(_decode(reader, raw, conn).header.frame_id)
+            break
+    finally:
+        reader.close()
+    if asked is not None:
+        return asked, 'as asked'
+    want = cfg.tf.fixed_frame
+    if want and linked(tree, frame, want):
+        return want, f'the bag links {frame!r} to it'
+    if not want:
+        return '', 'tf.fixed_frame is empty'
+    return '', ('the bag has no transforms' if not tf_conns else
+                f'the bag\'s transforms do not link {frame!r} to {want!r}')
+
+
 def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None = None,
-           plot_path=None, progress: bool = True) -> ReplaySummary:
+           plot_path=None, progress: bool = True,
+           fixed_frame: str | None = None) -> ReplaySummary:
     """
     Replay a bag into a new MCAP bag; optionally draw the run.
+
+    ``fixed_frame`` is the frame to track in ('' for the scan frame); by default
+    ``tf.fixed_frame`` where the bag's transforms link the scan frame to it, else the
+    scan frame (:func:`choose_fixed_frame`; the summary says which and why).
 
     Raises
     ------
@@ -161,7 +255,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     reader.close()
     if total == 0:
         raise BagError(f'{topic} in {input_path} holds no scans: nothing to replay')
-    summary = ReplaySummary(topic=topic, output=str(out),
+    frame, why = choose_fixed_frame(input_path, scan_topic, cfg, fixed_frame)
+    summary = ReplaySummary(topic=topic, output=str(out), fixed_frame=frame, frame_why=why,
                             removed_stages=[str(p) for p in remove_stale_stages(out)])
     tally = _Tally()
     sketch = None
@@ -171,8 +266,10 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
         sketch = RunSketch(lambda e: shapes(e, cfg.extraction) == SHAPE_RECTANGLE)
     bar = _Progress(total) if progress else None
     try:
-        results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames)
-        fov = _write_bag(out, results, cfg, tally, sketch, bar)
+        transforms: list = []
+        results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames, frame,
+                                 transforms)
+        fov = _write_bag(out, results, cfg, tally, sketch, bar, transforms)
     finally:
         if bar:
             bar.close()
@@ -186,10 +283,12 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     return summary
 
 
-def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, bar):
+def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, bar,
+               transforms: list):
     """Write every scan and its tracks and markers into the MCAP bag ``out`` (staged, moved
-    into place when complete); count them in ``tally``. Returns the first good scan's
-    field of view."""
+    into place when complete), with the transform messages ``results`` put in
+    ``transforms`` as it read them; count them in ``tally``. Returns the first good
+    scan's field of view."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = message_typestore()
@@ -200,7 +299,9 @@ def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, 
         c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
         c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
         c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
+        c_tf = {}
         for k, (scan, res) in enumerate(results):
+            _write_transforms(writer, store, c_tf, transforms)
             if fov is None and res.event != 'malformed_scan':
                 fov = scan_fov(scan)
             tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
@@ -215,7 +316,34 @@ def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, 
                 sketch.add(res)
             if bar:
                 bar.update(k + 1)
+        _write_transforms(writer, store, c_tf, transforms)
     return fov
+
+
+def _write_transforms(writer, store, connections: dict, transforms: list) -> None:
+    """Write (and take out of ``transforms``) the transform messages read so far,
+    ``/tf_static`` latched as ``ros2 bag play`` needs it for RViz."""
+    for topic, record_ns, msg in transforms:
+        topic = '/' + topic.lstrip('/')
+        if topic not in connections:
+            qos = _latched() if topic == '/tf_static' else ()
+            connections[topic] = writer.add_connection(topic, TF_TYPE, typestore=store,
+                                                       offered_qos_profiles=qos)
+        data = build_message(store, TF_TYPE, tf_data(msg))
+        writer.write(connections[topic], record_ns, store.serialize_cdr(data, TF_TYPE))
+    transforms.clear()
+
+
+def _latched():
+    """Transient-local durability, as tf2's static broadcaster offers ``/tf_static``."""
+    from rosbags.interfaces import (
+        Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime,
+    )
+
+    never = QosTime(2147483647, 4294967295)
+    return [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE,
+                QosDurability.TRANSIENT_LOCAL, never, never, QosLiveliness.AUTOMATIC, never,
+                False)]
 
 
 class _Tally:

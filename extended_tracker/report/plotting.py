@@ -34,10 +34,19 @@ def _outline(ax, row, colour, lw=1.5, alpha=1.0):
     ax.add_patch(Polygon(xy, closed=True, fill=False, ec=colour, lw=lw, alpha=alpha))
 
 
-def _sensor(ax, angle_lo, angle_hi, range_max):
-    ax.add_patch(Wedge((0, 0), range_max, math.degrees(angle_lo), math.degrees(angle_hi),
-                       fc=(0.93, 0.95, 1.0), ec=(0.6, 0.65, 0.8), lw=0.8, zorder=0))
-    ax.plot([0], [0], marker='^', color='k', ms=8, zorder=5)
+def _sensor(ax, angle_lo, angle_hi, range_max, pose=(0.0, 0.0, 0.0)):
+    """The field of view of the scanner at ``pose`` (x, y, yaw), and the scanner."""
+    x, y, yaw = pose
+    ax.add_patch(Wedge((x, y), range_max, math.degrees(angle_lo + yaw),
+                       math.degrees(angle_hi + yaw), fc=(0.93, 0.95, 1.0),
+                       ec=(0.6, 0.65, 0.8), lw=0.8, zorder=0))
+    ax.plot([x], [y], marker='^', color='k', ms=8, zorder=5)
+
+
+def _path(ax, path: np.ndarray) -> None:
+    """The scanner's path in the fixed frame."""
+    ax.plot(path[:, 0], path[:, 1], '-', color='k', lw=1.0, alpha=0.7, label='sensor path',
+            zorder=4)
 
 
 class RunSketch:
@@ -62,6 +71,7 @@ class RunSketch:
         self.stride = 1
         self.clouds: list = []           # (scan index, detections, background returns)
         self._kept = 0
+        self.path = array('d')           # the scanner's x, y, yaw in the fixed frame
 
     def add(self, result) -> None:
         """Take one :class:`StepResult`."""
@@ -78,6 +88,9 @@ class RunSketch:
                     track = self.tracks[lab] = array('d')
                 track.extend((x, y, a, b, w, float(r)))
         k, self.scans = self.scans, self.scans + 1
+        pose = getattr(result, 'pose', None)
+        if pose is not None:
+            self.path.extend((pose.x, pose.y, pose.yaw))
         pts, bg = result.points, result.background_points
         if k % self.stride or not (len(pts) or len(bg)):
             return
@@ -131,10 +144,14 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
             sketch.add(r)
     pts, bg = sketch.points(), sketch.background()
     tracks = {lab: sketch.track(lab) for lab in sorted(sketch.tracks)}
-    limits = plot_limits(pts + [seq[:, :2] for seq in tracks.values()])
+    poses = np.array(sketch.path).reshape(-1, 3)
+    limits = plot_limits(pts + [seq[:, :2] for seq in tracks.values()] + [poses[:, :2]],
+                         origin=poses[-1, :2] if len(poses) else np.zeros(2))
     fig, ax = plt.subplots(figsize=figure_size(limits), dpi=110)
     if fov is not None:
-        _sensor(ax, *fov)
+        _sensor(ax, *fov, pose=tuple(poses[-1]) if len(poses) else (0.0, 0.0, 0.0))
+    if len(poses):
+        _path(ax, poses)
     if bg:
         b = np.vstack(bg)
         step = max(1, len(b) // max_points)
@@ -176,18 +193,18 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
     plt.close(fig)
 
 
-def plot_limits(chunks):
+def plot_limits(chunks, origin=np.zeros(2)):
     """``(lo, hi)`` corners of the view around the points and track centres (0.5 and 99.5
-    percentiles, 1 m margin), the sensor at the origin kept in view, half a metre from the
-    edge at least, on every side (a scanner looking backwards sees negative x only);
+    percentiles, 1 m margin), the sensor at ``origin`` kept in view, half a metre from
+    the edge at least, on every side (a scanner looking backwards sees negative x only);
     None without any."""
     chunks = [c for c in chunks if len(c)]
     if not chunks:
         return None
-    allp = np.vstack(chunks + [np.zeros((1, 2))])
+    allp = np.vstack(chunks + [origin[None, :]])
     lo = np.percentile(allp, 0.5, axis=0) - 1.0
     hi = np.percentile(allp, 99.5, axis=0) + 1.0
-    return np.minimum(lo, -0.5), np.maximum(hi, 0.5)
+    return np.minimum(lo, origin - 0.5), np.maximum(hi, origin + 0.5)
 
 
 FIGURE_SIZE = (10.0, 8.0)        # inches, the picture of a scene about as wide as deep
