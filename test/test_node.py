@@ -277,9 +277,9 @@ def test_a_pipeline_failure_is_answered_counted_and_survived(harness, monkeypatc
     logs and counts it, and carries on with the next scan from the unchanged state."""
     from diagnostic_msgs.msg import DiagnosticStatus
 
-    import extended_tracker.ros.node as node_mod
+    import extended_tracker.pipeline as pipeline_mod
 
-    fail_on_call(monkeypatch, node_mod, 'step', 15, RuntimeError('a bug'))
+    fail_on_call(monkeypatch, pipeline_mod, 'step', 15, RuntimeError('a bug'))
     data = simulate(tutorial_scene(), 2.0, seed=0)
     replies = [harness.send(ros_scan(scan)) for scan, _ in data]
     assert len(replies) == harness.node.scans == 20
@@ -320,7 +320,7 @@ def test_a_node_that_cannot_keep_up_says_so(harness, monkeypatch):
     """Scans 0.1 s apart, each taking 0.12 s: after ten in a row the node logs and counts
     falling_behind (in the diagnostics too), and again after ten more; at its normal pace
     it never does."""
-    import extended_tracker.ros.node as node_mod
+    import extended_tracker.pipeline as node_mod
 
     data = simulate(tutorial_scene(), 4.0, seed=0)
     for scan, _ in data[:5]:
@@ -1136,7 +1136,7 @@ def test_the_process_refuses_an_out_of_range_value_in_one_fatal_line(tmp_path):
 def test_a_failure_on_a_zero_stamped_scan_is_answered_at_its_arrival(harness, monkeypatch):
     """The previous estimates published for a scan the pipeline failed on carry the time
     that scan is taken at: for a zero stamp, its arrival."""
-    import extended_tracker.ros.node as node_mod
+    import extended_tracker.pipeline as node_mod
 
     data = simulate(tutorial_scene(), 0.5, seed=0)
     for scan, _ in data[:3]:

@@ -2,7 +2,8 @@
 # Set up everything `make test` and `make demo` need, idempotently:
 #   1. a venv under .venv with ROS 2 Jazzy wheels pinned by constraints.txt;
 #   2. the include paths of the wheels' build host rewritten in their CMake exports;
-#   3. extended_tracker_msgs built with ament_cmake + rosidl and installed into the venv;
+#   3. extended_tracker_msgs built with ament_cmake + rosidl and installed into the venv,
+#      and tf2_msgs's TFMessage (tools/tf2_msgs) where the venv has no tf2_msgs;
 #   4. this package installed with its `ros2 run` executable under
 #      .venv/lib/extended_tracker.
 # A step whose stamp file is newer than its inputs is skipped, so a second run takes seconds.
@@ -12,7 +13,6 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 venv=${EXTENDED_TRACKER_VENV:-$root/.venv}
 python=${PYTHON:-}
 stamps=$venv/.stamps
-build=$root/build/extended_tracker_msgs
 msgs_src=$root/interfaces/extended_tracker_msgs
 
 log() { printf '[bootstrap] %s\n' "$*"; }
@@ -87,23 +87,39 @@ if [ ! -f "$stamps/cmake-paths" ]; then
   touch "$stamps/cmake-paths"
 fi
 
-if newer "$stamps/msgs" "$msgs_src"/msg/*.msg "$msgs_src/CMakeLists.txt" "$msgs_src/package.xml"; then
-  log 'building extended_tracker_msgs (ament_cmake + rosidl)'
-  rm -rf "$build"
-  mkdir -p "$build"
+build_interfaces() {  # build_interfaces NAME SOURCE: ament_cmake + rosidl into the venv
+  local name=$1 src=$2 dir=$root/build/$1
+  log "building $name (ament_cmake + rosidl)"
+  rm -rf "$dir"
+  mkdir -p "$dir"
   (
     export AMENT_PREFIX_PATH=$venv
     export CMAKE_PREFIX_PATH=$venv
     export PATH=$venv/bin:$PATH
-    cmake -S "$msgs_src" -B "$build" -DCMAKE_INSTALL_PREFIX="$venv" \
+    cmake -S "$src" -B "$dir" -DCMAKE_INSTALL_PREFIX="$venv" \
       -DCMAKE_BUILD_TYPE=Release -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$vpy" \
-      > "$build/configure.log" 2>&1 || { tail -40 "$build/configure.log"; exit 1; }
-    cmake --build "$build" -j "$(nproc)" > "$build/build.log" 2>&1 \
-      || { tail -40 "$build/build.log"; exit 1; }
-    cmake --install "$build" > "$build/install.log" 2>&1 \
-      || { tail -40 "$build/install.log"; exit 1; }
+      > "$dir/configure.log" 2>&1 || { tail -40 "$dir/configure.log"; exit 1; }
+    cmake --build "$dir" -j "$(nproc)" > "$dir/build.log" 2>&1 \
+      || { tail -40 "$dir/build.log"; exit 1; }
+    cmake --install "$dir" > "$dir/install.log" 2>&1 \
+      || { tail -40 "$dir/install.log"; exit 1; }
   )
+}
+
+if newer "$stamps/msgs" "$msgs_src"/msg/*.msg "$msgs_src/CMakeLists.txt" "$msgs_src/package.xml"; then
+  build_interfaces extended_tracker_msgs "$msgs_src"
   touch "$stamps/msgs"
+fi
+
+# No tf2_msgs wheel exists: build its TFMessage only where the venv lacks the package
+# (a venv on a ROS install's Python, or a later wheel, has it).
+tf_src=$root/tools/tf2_msgs
+if [ -f "$stamps/tf2_msgs" ] && newer "$stamps/tf2_msgs" "$tf_src"/msg/*.msg "$tf_src/CMakeLists.txt"; then
+  rm -f "$stamps/tf2_msgs"
+fi
+if [ ! -f "$stamps/tf2_msgs" ] && ! "$vpy" -c 'import tf2_msgs.msg' 2>/dev/null; then
+  build_interfaces tf2_msgs "$tf_src"
+  touch "$stamps/tf2_msgs"
 fi
 
 # A regular (not editable) install, so that data_files (ament index marker, package.xml,

@@ -16,8 +16,10 @@ import numpy as np
 from .. import stopping
 from ..config import from_dict
 from ..errors import BagError, ExtendedTrackerError
+from ..frames.pose import Placement, Pose2
 from ..pipeline import PipelineState, step
 from ..sim import laser
+from ..sim.drive import corridor_drive_scene
 from .metrics import score_sequence
 
 GOSPA_C = 2.0          # m, cut-off
@@ -45,6 +47,11 @@ SCENARIOS = {
                 'the tutorial people with 15 clutter returns per scan'),
     'walls': (laser.walls_scene, 20.0, 6, {},
               'a room with walls and furniture; a person walks in and stands 10 s'),
+    'corridor_drive': (corridor_drive_scene, 20.0, 7, {},
+                       'the scanner on a robot driving an L-shaped corridor at 0.6-0.8 m/s '
+                       'and turning into the side corridor (270 deg / 0.5 deg / 13 m), '
+                       'tracked in odom: people walking both ways, one who walks to the '
+                       'wall and stands there, one overtaking the robot'),
 }
 VARIANTS = {
     'CPHD, scan shadow': {'model': {'mode': 'cphd'}, 'detection': {'model': 'scan_shadow'}},
@@ -77,6 +84,9 @@ def in_view(xy, view) -> np.ndarray:
     xy = np.asarray(xy, dtype=float).reshape(-1, 2)
     if view is None:
         return np.ones(len(xy), dtype=bool)
+    if len(view) == 4:                   # a scanner posed in the fixed frame the points are in
+        xy = view[3].to_inner(xy)
+        view = view[:3]
     a0, a1, range_max = (float(v) for v in view)
     lo, width = min(a0, a1), abs(a1 - a0)             # angle_increment may be negative
     near = np.hypot(xy[:, 0], xy[:, 1]) <= range_max + VIEW_EDGE
@@ -88,9 +98,11 @@ def in_view(xy, view) -> np.ndarray:
     return near & (bearing <= width + 2.0 * VIEW_EDGE)
 
 
-def view_of(scan):
-    """The region a LaserScan covers, for :func:`in_view`."""
-    return (scan.angle_min, scan.angle_max, scan.range_max)
+def view_of(scan, pose=None):
+    """The region a LaserScan covers, for :func:`in_view`; with the scanner's ``pose`` in
+    a fixed frame, the region there."""
+    view = (scan.angle_min, scan.angle_max, scan.range_max)
+    return view if pose is None else view + (pose,)
 
 
 def objects_in_view(objects, view=None) -> list:
@@ -128,10 +140,13 @@ def run_scenario(name: str, variant: dict):
     cfg = from_dict(merge_overrides(merge_overrides(SUITE_CONFIG, overrides), variant))
     state = PipelineState.initial(cfg)
     truth_seq, est_seq, hidden_seq = [], [], []
-    for scan, objs in laser.simulate(factory(), seconds, seed=seed):
+    scene = factory()
+    for k, (scan, objs) in enumerate(laser.simulate(scene, seconds, seed=seed)):
         stopping.check()                 # a lost Ctrl-C: before `results` writes README
-        state, res = step(state, scan, cfg)
-        view = view_of(scan)
+        pose = scene.pose(k / scene.laser.rate_hz)
+        place = None if pose is None else Placement(scene.drive.fixed_frame, pose)
+        state, res = step(state, scan, cfg, place=place)
+        view = view_of(scan, pose)
         objs = objects_in_view(objs, view)             # once, for the truth and its hidden
         truth_seq.append(truth_of(objs))
         hidden_seq.append(hidden_of(objs))
@@ -165,7 +180,7 @@ def scenario_notes() -> str:
 
 
 def write_readme_results(readme: Path) -> None:
-    """Replace the README's results section between its markers."""
+    """Replace the results section between its markers (in ``doc/results.md``)."""
     begin, end = '<!-- results:begin -->', '<!-- results:end -->'
     try:
         text = readme.read_text()
@@ -196,7 +211,7 @@ def evaluate_bag(output_bag, truth_path, plot=None):
 
     from ..bag.bagio import message_typestore
 
-    by_stamp, view, digest, beams_known = _read_truth(truth_path)
+    by_stamp, view, digest, beams_known, poses = _read_truth(truth_path)
     if plot:
         from ..report.imagefile import image_path
 
@@ -219,7 +234,8 @@ def evaluate_bag(output_bag, truth_path, plot=None):
             ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
             if ns not in by_stamp:
                 continue
-            objs, truth, est = _scan_sets(by_stamp[ns], msg.objects, view)
+            scan_view = view if ns not in poses else tuple(view) + (Pose2(*poses[ns]),)
+            objs, truth, est = _scan_sets(by_stamp[ns], msg.objects, scan_view)
             if beams_known:
                 hidden_seq.append(np.array([o['visible_beams'] == 0 for o in objs], dtype=bool))
             truth_seq.append(truth)
@@ -236,11 +252,13 @@ def evaluate_bag(output_bag, truth_path, plot=None):
 
 
 def _read_truth(truth_path):
-    """``(objects by stamp, view, scan digest, whether hidden objects are known)`` of a
-    truth file; BagError if it cannot be read."""
+    """``(objects by stamp, view, scan digest, whether hidden objects are known, scanner
+    poses by stamp)`` of a truth file (poses where the scanner drives: the truth is in
+    the fixed frame); BagError if it cannot be read."""
     try:
         truth = json.loads(Path(truth_path).read_text())
         by_stamp = {s['stamp_ns']: s['objects'] for s in truth['scans']}
+        poses = {s['stamp_ns']: s['pose'] for s in truth['scans'] if 'pose' in s}
         view = truth.get('info', {}).get('view')
         digest = truth.get('info', {}).get('scan_digest')
         # which objects were hidden is known when every object says how many beams
@@ -250,7 +268,7 @@ def _read_truth(truth_path):
         msg = (f'cannot read the truth {truth_path} (a truth.json written by '
                f'extended-tracker simulate): {err!r}')
         raise BagError(msg) from err
-    return by_stamp, view, digest, beams_known
+    return by_stamp, view, digest, beams_known, poses
 
 
 def _scan_sets(objs, objects, view):

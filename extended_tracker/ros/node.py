@@ -5,7 +5,11 @@ Subscribes to ``scan`` (sensor_msgs/LaserScan, sensor-data QoS, remappable) and,
 every scan, publishes ``tracks`` (extended_tracker_msgs/ExtendedObjectArray),
 ``tracks/markers`` (visualization_msgs/MarkerArray; only while it has a subscriber) and
 ``tracks/diagnostics`` (diagnostic_msgs/DiagnosticArray), all stamped with the scan's
-stamp and frame. The service ``~/reset`` (std_srvs/Trigger) drops the tracks, the learned
+stamp, in the fixed frame ``tf.fixed_frame`` (odom) where the transforms link the scan
+to it, else in the scan frame (said once: a stationary scanner with no TF). Transforms
+come from tf2_ros where installed, else from ``/tf`` and ``/tf_static``
+(:mod:`ros.transforms`); a scan waits up to ``tf.timeout`` for its own
+(:mod:`frames.placing`). The service ``~/reset`` (std_srvs/Trigger) drops the tracks, the learned
 background and the frame lock (a moved scanner); ids continue. A thin
 shell around :func:`extended_tracker.pipeline.step`, the same function the bag replay
 calls.
@@ -21,9 +25,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from extended_tracker_msgs.msg import ExtendedObjectArray
-from rcl_interfaces.msg import (
-    FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -39,14 +41,17 @@ from std_srvs.srv import Trigger
 from visualization_msgs.msg import MarkerArray
 
 from .. import stopping
-from ..config import from_flat, iter_leaves, leaf_kind, to_flat, TrackerConfig
-from ..configio import double_hint, DOUBLE_LIST_HINT, NODE_NAME
+from ..config import from_flat, to_flat, TrackerConfig
+from ..configio import NODE_NAME
 from ..errors import ConfigError
-from ..pipeline import held, PipelineState, reset, step
+from ..frames.placing import NOTICES, PLACING_EVENTS, ScanPlacer
+from ..pipeline import held, PipelineState, reset, step_placed
 from ..report.messages import markers_data, tracks_data
 from .convert import fill
 from .entry import take_signals
 from .events import EventLog, ScanGaps
+from .parameters import parameter_descriptors, range_error, type_error
+from .transforms import TransformSource
 
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
 # estimates), or building or publishing its messages did.
@@ -57,56 +62,11 @@ FALLING_BEHIND = 'falling_behind'
 FALLING_BEHIND_SCANS = 10
 # scans missing between the stamps of those that reach the callback (ros.events.ScanGaps)
 SCANS_DROPPED = 'scans_dropped'
-NODE_EVENTS = (INTERNAL_ERROR, FALLING_BEHIND, SCANS_DROPPED)
+NODE_EVENTS = (INTERNAL_ERROR, FALLING_BEHIND, SCANS_DROPPED) + PLACING_EVENTS
 #: how often what was counted and not logged is summarised in the log, s
 SUMMARY_PERIOD_S = 10.0
-_PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
-          'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
-          'list': ParameterType.PARAMETER_DOUBLE_ARRAY}
-
-
-def parameter_descriptors(cfg: TrackerConfig | None = None) -> dict:
-    """``{dotted_name: (default, ParameterDescriptor)}`` for every configuration field."""
-    cfg = cfg or TrackerConfig()
-    out = {}
-    for name, f, value in iter_leaves(cfg):
-        meta = f.metadata
-        kind = leaf_kind(f)
-        desc = ParameterDescriptor(name=name, type=_PTYPE[kind])
-        unit = f' [{meta["unit"]}]' if meta['unit'] else ''
-        text = meta['description'] + unit
-        if meta['choices']:
-            text += f'; one of {", ".join(meta["choices"])}'
-        desc.description = text
-        if kind == 'float' and meta['min'] is not None and meta['max'] is not None:
-            desc.floating_point_range = [FloatingPointRange(
-                from_value=float(meta['min']), to_value=float(meta['max']), step=0.0)]
-        if kind == 'int' and meta['min'] is not None and meta['max'] is not None:
-            desc.integer_range = [IntegerRange(
-                from_value=int(meta['min']), to_value=int(meta['max']), step=1)]
-        out[name] = (value, desc)
-    return out
-
-
-def _type_error(name: str, expected: int, err: Exception) -> str:
-    """The start-up error for a parameter given with a type the node does not take."""
-    want = {ParameterType.PARAMETER_DOUBLE: 'a double',
-            ParameterType.PARAMETER_INTEGER: 'an integer',
-            ParameterType.PARAMETER_BOOL: 'a bool', ParameterType.PARAMETER_STRING: 'a string',
-            ParameterType.PARAMETER_DOUBLE_ARRAY: 'a list of doubles'}[expected]
-    hint = {ParameterType.PARAMETER_DOUBLE: f' ({double_hint()})',
-            ParameterType.PARAMETER_DOUBLE_ARRAY: f' ({DOUBLE_LIST_HINT})'}
-    said = str(err).removesuffix(f': {name}')        # rclpy's text, without the name again
-    return f'{name} must be {want}{hint.get(expected, "")}; {said}'
-
-
-def _range_error(name: str, desc: ParameterDescriptor, value) -> str:
-    """The start-up error for a parameter given outside its descriptor's range."""
-    ranges = desc.floating_point_range or desc.integer_range
-    span = f' [{ranges[0].from_value:g}, {ranges[0].to_value:g}]' if ranges else ''
-    return f'{name} = {value!r} is out of its range{span}: {desc.description}'
-
-
+#: how often the queue of scans waiting for their transform is looked at, s
+DRAIN_PERIOD_S = 0.02
 class TrackerNode(Node):
     """Extended object tracker on one LaserScan topic."""
 
@@ -138,6 +98,23 @@ class TrackerNode(Node):
             f'tracking {self.sub.topic_name} in {self.cfg.model.mode} mode, p_D '
             f'{self.cfg.detection.model}, clutter density {self.cfg.model.clutter_density}, '
             f'background {"on" if self.cfg.background.enabled else "off"}')
+        self.frame_note = 'the scan frame (tf.fixed_frame is empty)'
+        self.transforms, self.placer = self._transforms()
+
+    def _transforms(self):
+        """The transform source and the scans' queue, or none with ``tf.fixed_frame``
+        empty (tracking in the scan frame)."""
+        tf = self.cfg.tf
+        if not tf.fixed_frame:
+            return None, None
+        source = TransformSource(self)
+        placer = ScanPlacer(source.lookup, tf.fixed_frame, tf.timeout, tf.max_tilt)
+        self.drain_timer = self.create_timer(DRAIN_PERIOD_S, self.drain)
+        self.frame_note = f'{tf.fixed_frame} (transforms from {source.kind})'
+        self.get_logger().info(f'tracking in {tf.fixed_frame} where the transforms link the '
+                               f'scans to it (from {source.kind}; a scan waits up to '
+                               f'{tf.timeout:g} s for its own)')
+        return source, placer
 
     # --- parameters ---
     def _declare_parameters(self) -> None:
@@ -158,9 +135,9 @@ class TrackerNode(Node):
                 else:
                     self.declare_parameter(name, default, desc)
             except InvalidParameterTypeException as err:
-                raise ConfigError(_type_error(name, desc.type, err)) from err
+                raise ConfigError(type_error(name, desc.type, err)) from err
             except InvalidParameterValueException as err:
-                raise ConfigError(_range_error(name, desc, self._given(name))) from err
+                raise ConfigError(range_error(name, desc, self._given(name))) from err
 
     def _given(self, name: str):
         """The value given for ``name`` (a parameter file, ``-p``), or None."""
@@ -214,13 +191,37 @@ class TrackerNode(Node):
         self.cfg = new_cfg
         return SetParametersResult(successful=True)
 
-    # --- the callback ---
+    # --- the callbacks ---
     def on_scan(self, msg: LaserScan) -> None:
-        t0 = time.perf_counter()
+        """A scan: tracked now in the scan frame (``tf.fixed_frame`` empty, or a header the
+        pipeline will call malformed), else queued for its transform."""
         # the arrival time stands in for a zero header stamp (event zero_stamp)
         arrival = self.get_clock().now().nanoseconds
+        frame = getattr(getattr(msg, 'header', None), 'frame_id', None)
+        if self.placer is None or not isinstance(frame, str):
+            self.track(msg, arrival, None)
+            return
+        stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+        self.placer.push(msg, stamp or arrival, frame, arrival)
+        self.drain()
+
+    def drain(self) -> None:
+        """Track the queued scans whose transform came or whose wait is over (the
+        timer calls it too, so a scan never waits past ``tf.timeout`` for the next one)."""
+        if self.placer is None:
+            return
+        for placed in self.placer.ready(self.get_clock().now().nanoseconds):
+            if placed.event in NOTICES:          # which frame: said once, in diagnostics
+                self.frame_note = placed.error
+                self.get_logger().info(placed.error)
+            self.track(placed.scan, placed.arrival_ns, placed)
+
+    def track(self, msg, arrival: int, placed) -> None:
+        """One scan through the pipeline (placed in the fixed frame when ``placed``),
+        then its publications."""
+        t0 = time.perf_counter()
         try:
-            self.state, result = step(self.state, msg, self.cfg, arrival_ns=arrival)
+            self.state, result = step_placed(self.state, msg, self.cfg, arrival, placed)
         except Exception as err:
             # a bug must not take the node down, nor leave the scan unanswered: say it
             # loudly, and publish the previous estimates for it (the state is unchanged)
@@ -324,6 +325,7 @@ class TrackerNode(Node):
         values['scans'] = self.scans
         values['scans_dropped'] = self.gaps.total
         values['reason'] = result.error or ''
+        values['frame'] = self.frame_note
         for k, v in sorted(self.counts.items()):
             values[f'count_{k}'] = v
             values[f'last_reason_{k}'] = self.events.last_reason.get(k, '')
@@ -340,7 +342,7 @@ USAGE = f"""usage: tracker_node [--ros-args [-p NAME:=VALUE] [--params-file FILE
 Tracks pedestrians, bicycles and cars in a sensor_msgs/LaserScan topic with a GGIW-CPHD
 filter (the extended_tracker package).
 
-  subscribes  scan (sensor_msgs/LaserScan)
+  subscribes  scan (sensor_msgs/LaserScan), /tf and /tf_static (tf2_msgs/TFMessage)
   publishes   tracks (extended_tracker_msgs/ExtendedObjectArray)
               tracks/markers (visualization_msgs/MarkerArray)
               tracks/diagnostics (diagnostic_msgs/DiagnosticArray)

@@ -93,6 +93,7 @@ class NodeHarness:
         self.executor.add_node(self.node)
         self.executor.add_node(self.probe)
         self.expect_markers = False
+        self._tf_pubs: dict = {}
         self.spin_until(lambda: self.pub.get_subscription_count() >= 1
                         and self.node.pub_diag.get_subscription_count() >= 1)
         if markers:
@@ -122,6 +123,38 @@ class NodeHarness:
                                and (not self.expect_markers or len(self.markers) > n_markers)):
             raise AssertionError(f'no reply from the node within {self.spin_limit} s')
         return self.tracks[-1]
+
+    def send_transform(self, parent: str, child: str, x: float, y: float, yaw: float,
+                       stamp_ns: int = 0, static: bool = False) -> None:
+        """
+        Publish a planar transform ``parent -> child`` on ``/tf`` (``/tf_static`` when
+        ``static``, latched) and spin until the node has taken it in (its own buffer;
+        with tf2_ros, a short spin).
+        """
+        import math
+
+        from geometry_msgs.msg import TransformStamped
+        from rclpy.qos import DurabilityPolicy, QoSProfile
+        from tf2_msgs.msg import TFMessage
+
+        topic = '/tf_static' if static else '/tf'
+        if topic not in self._tf_pubs:
+            qos = QoSProfile(depth=100, durability=(DurabilityPolicy.TRANSIENT_LOCAL if static
+                                                    else DurabilityPolicy.VOLATILE))
+            self._tf_pubs[topic] = self.probe.create_publisher(TFMessage, topic, qos)
+            self.spin_until(lambda: self._tf_pubs[topic].get_subscription_count() >= 1)
+        ts = TransformStamped()
+        ts.header.stamp.sec, ts.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        ts.header.frame_id, ts.child_frame_id = parent, child
+        ts.transform.translation.x, ts.transform.translation.y = float(x), float(y)
+        ts.transform.rotation.z, ts.transform.rotation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        source = self.node.transforms
+        before = getattr(source, 'messages', 0)
+        self._tf_pubs[topic].publish(TFMessage(transforms=[ts]))
+        if source is not None and source.kind == 'own':
+            self.spin_until(lambda: source.messages > before)
+        else:
+            self.spin_until(lambda: False, limit=0.05)
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -11,7 +11,9 @@ import numpy as np
 from . import laser
 from .. import stopping
 from ..bag.bagio import build_message, message_typestore, scan_data, SCAN_TYPE, staged_bag
+from ..bag.transforms import TF_TYPE
 from ..errors import BagError
+from .drive import corridor_drive_scene
 
 SCENE_OF = {
     'tutorial': laser.tutorial_scene,
@@ -19,6 +21,7 @@ SCENE_OF = {
     'mixed_traffic': laser.mixed_traffic_scene,
     'walls': laser.walls_scene,
     'demo': laser.demo_scene,
+    'corridor_drive': corridor_drive_scene,
 }
 
 # the truth is held in memory until it is written at the end: an hour (36 000 scans at
@@ -64,9 +67,12 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     with staged_bag(out) as tmp:
         with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
             conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
-            for scan, objs in laser.simulated_scans(sim_scene, duration, seed):
+            tf = _TransformWriter(writer, store, sim_scene) if sim_scene.drive else None
+            for k, (scan, objs) in enumerate(laser.simulated_scans(sim_scene, duration, seed)):
                 stopping.check()
                 stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
+                if tf is not None:
+                    tf.write(stamp, k / sim_scene.laser.rate_hz)
                 msg = build_message(store, SCAN_TYPE, scan_data(scan))
                 digest.update(scan_ranges_bytes(msg))
                 writer.write(conn, stamp, store.serialize_cdr(msg, SCAN_TYPE))
@@ -74,6 +80,9 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
                     {'id': o.id, 'kind': o.kind, 'centre': o.centre.tolist(),
                      'velocity': o.velocity.tolist(), 'extent': o.extent.tolist(),
                      'visible_beams': o.visible_beams} for o in objs]})
+                if tf is not None:
+                    pose = sim_scene.pose(k / sim_scene.laser.rate_hz)
+                    truth[-1]['pose'] = [pose.x, pose.y, pose.yaw]
         L = sim_scene.laser
         info = {'scene': scene, 'seed': seed, 'duration_s': duration, 'scans': len(truth),
                 'topic': topic, 'bag': str(out), 'truth': str(out / 'truth.json'),
@@ -81,5 +90,44 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
                 'scan_digest': digest.hexdigest(),
                 # the region the scanner covers: evaluate scores over it
                 'view': [L.angle_min, L.angle_max, L.range_max]}
+        if sim_scene.drive is not None:     # truth in the fixed frame, the scanner posed
+            info['fixed_frame'] = sim_scene.drive.fixed_frame
         (tmp / 'truth.json').write_text(json.dumps({'info': info, 'scans': truth}))
     return info
+
+
+class _TransformWriter:
+    """The ``/tf`` (fixed -> base at every half scan period, the base's pose at that time)
+    and ``/tf_static`` (base -> scanner, once) of a scene with a drive."""
+
+    def __init__(self, writer, store, scene: laser.Scene):
+        self.writer, self.store, self.drive = writer, store, scene.drive
+        self.laser = scene.laser
+        self.tf = writer.add_connection('/tf', TF_TYPE, typestore=store)
+        self.static = writer.add_connection('/tf_static', TF_TYPE, typestore=store)
+        self.first = True
+
+    def write(self, stamp_ns: int, t: float) -> None:
+        """The transforms of a scan at ``t`` (s) stamped ``stamp_ns``: the base's pose at
+        it and half a period after (so that the scan's own stamp is always covered)."""
+        d = self.drive
+        if self.first:
+            self.first = False
+            self._put(self.static, stamp_ns, d.base_frame, self.laser.frame_id, d.mount)
+        half = 0.5 / self.laser.rate_hz
+        for dt in (0.0, half):
+            ns = stamp_ns + int(round(dt * 1e9))
+            self._put(self.tf, ns, d.fixed_frame, d.base_frame, d.base_pose(t + dt))
+
+    def _put(self, conn, ns: int, parent: str, child: str, pose) -> None:
+        import math
+
+        sec, nsec = divmod(ns, 1_000_000_000)
+        data = {'transforms': [{
+            'header': {'stamp': {'sec': sec, 'nanosec': nsec}, 'frame_id': parent},
+            'child_frame_id': child,
+            'transform': {'translation': {'x': pose.x, 'y': pose.y, 'z': 0.0},
+                          'rotation': {'x': 0.0, 'y': 0.0, 'z': math.sin(pose.yaw / 2),
+                                       'w': math.cos(pose.yaw / 2)}}}]}
+        msg = build_message(self.store, TF_TYPE, data)
+        self.writer.write(conn, ns, self.store.serialize_cdr(msg, TF_TYPE))

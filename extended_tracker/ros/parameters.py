@@ -1,0 +1,62 @@
+"""
+The node's parameters: one ROS parameter per configuration field, its descriptor (type,
+range, description) from the field's metadata, and the one-line errors for a value the
+descriptor refuses.
+"""
+
+from __future__ import annotations
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+
+from ..config import iter_leaves, leaf_kind, TrackerConfig
+from ..configio import double_hint, DOUBLE_LIST_HINT
+
+_PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
+          'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
+          'list': ParameterType.PARAMETER_DOUBLE_ARRAY}
+
+
+def parameter_descriptors(cfg: TrackerConfig | None = None) -> dict:
+    """``{dotted_name: (default, ParameterDescriptor)}`` for every configuration field."""
+    cfg = cfg or TrackerConfig()
+    out = {}
+    for name, f, value in iter_leaves(cfg):
+        meta = f.metadata
+        kind = leaf_kind(f)
+        desc = ParameterDescriptor(name=name, type=_PTYPE[kind])
+        unit = f' [{meta["unit"]}]' if meta['unit'] else ''
+        text = meta['description'] + unit
+        if meta['choices']:
+            text += f'; one of {", ".join(meta["choices"])}'
+        desc.description = text
+        if kind == 'float' and meta['min'] is not None and meta['max'] is not None:
+            desc.floating_point_range = [FloatingPointRange(
+                from_value=float(meta['min']), to_value=float(meta['max']), step=0.0)]
+        if kind == 'int' and meta['min'] is not None and meta['max'] is not None:
+            desc.integer_range = [IntegerRange(
+                from_value=int(meta['min']), to_value=int(meta['max']), step=1)]
+        out[name] = (value, desc)
+    return out
+
+
+def type_error(name: str, expected: int, err: Exception) -> str:
+    """The start-up error for a parameter given with a type the node does not take."""
+    want = {ParameterType.PARAMETER_DOUBLE: 'a double',
+            ParameterType.PARAMETER_INTEGER: 'an integer',
+            ParameterType.PARAMETER_BOOL: 'a bool', ParameterType.PARAMETER_STRING: 'a string',
+            ParameterType.PARAMETER_DOUBLE_ARRAY: 'a list of doubles'}[expected]
+    hint = {ParameterType.PARAMETER_DOUBLE: f' ({double_hint()})',
+            ParameterType.PARAMETER_DOUBLE_ARRAY: f' ({DOUBLE_LIST_HINT})'}
+    said = str(err).removesuffix(f': {name}')        # rclpy's text, without the name again
+    return f'{name} must be {want}{hint.get(expected, "")}; {said}'
+
+
+def range_error(name: str, desc: ParameterDescriptor, value) -> str:
+    """The start-up error for a parameter given outside its descriptor's range."""
+    ranges = desc.floating_point_range or desc.integer_range
+    span = f' [{ranges[0].from_value:g}, {ranges[0].to_value:g}]' if ranges else ''
+    return f'{name} = {value!r} is out of its range{span}: {desc.description}'
+
+
+
+__all__ = ['parameter_descriptors', 'type_error', 'range_error']
