@@ -40,7 +40,7 @@ bench: setup
 	$(TRACKER) bench --memory 20000
 
 results: setup
-	$(TRACKER) results --readme README.md
+	$(TRACKER) results --readme doc/results.md
 
 config: setup
 	$(PY) -m extended_tracker.configio > config/tracker.yaml
