@@ -49,6 +49,7 @@ from .sensing.static_map import StaticMap
 from .stages import detect, drop_absorbed, remove_background, update_tracks
 from .tracks.estimates import Estimates
 from .tracks.record import TrackRecord
+from .tracks.times import TrackTimes
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
           'unexplained_scan', 'zero_stamp', 'scan_layout_changed', 'frame_jump')
@@ -89,6 +90,8 @@ class PipelineState:
         learned.
     moving : bool
         The scanner has moved in the fixed frame: the static map drops returns.
+    times : TrackTimes
+        When each shown id was first shown and last updated by returns.
 
     """
 
@@ -105,6 +108,7 @@ class PipelineState:
     pose: Pose2 | None = None
     anchor: Pose2 | None = None
     moving: bool = False
+    times: TrackTimes = field(default_factory=TrackTimes)
 
     @staticmethod
     def initial(cfg: TrackerConfig) -> 'PipelineState':
@@ -139,6 +143,9 @@ class StepResult:
     pose : Pose2 or None
         The scanner's pose in the fixed frame (None: tracked in the scan frame, or the
         scan not used).
+    age, since_detected : (k,) arrays
+        Of each estimate: seconds since its id was first shown, and since returns last
+        updated it (0 in a scan that updated it).
 
     """
 
@@ -154,6 +161,15 @@ class StepResult:
     error: str | None = None
     processing_time: float = 0.0
     pose: Pose2 | None = None
+    age: np.ndarray | None = None
+    since_detected: np.ndarray | None = None
+
+    def __post_init__(self):
+        # a result made by hand (a test, a tool) without the times: none known, 0
+        if self.age is None:
+            self.age = np.zeros(len(self.estimates))
+        if self.since_detected is None:
+            self.since_detected = np.zeros(len(self.estimates))
 
 
 def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None = None,
@@ -196,14 +212,17 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     if diag.unexplained:
         event, error = _with_event(event, error, 'unexplained_scan',
                                    _unexplained(len(fg.points), cfg))
+    times = state.times.updated(estimates, scan_in.stamp_ns)
     new_state = replace(state, filter=filt, tracks=tracks, background=fg.background,
                         static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
                         frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
-                        scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose)
+                        scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
+                        times=times)
     card, mean = _card_of(new_state)
     return new_state, StepResult(scan_in.stamp_ns, scan_in.frame_id, estimates, card, mean,
                                  fg.points, fg.background_points, diag, event, error,
-                                 time.perf_counter() - t0, pose)
+                                 time.perf_counter() - t0, pose,
+                                 *times.of(estimates, scan_in.stamp_ns))
 
 
 def _anchored(state: PipelineState, pose: Pose2 | None, jumped: bool) -> PipelineState:
@@ -366,7 +385,8 @@ def _card_of(state: PipelineState):
 def _repeat(state, scan_stamp, frame, event, error, t0):
     card, mean = _card_of(state)
     return StepResult(scan_stamp, frame, state.last_estimates, card, mean, np.zeros((0, 2)),
-                      np.zeros((0, 2)), Diagnostics(), event, error, time.perf_counter() - t0)
+                      np.zeros((0, 2)), Diagnostics(), event, error, time.perf_counter() - t0,
+                      None, *state.times.of(state.last_estimates, scan_stamp))
 
 
 def held(state: PipelineState, scan, event: str, error: str,

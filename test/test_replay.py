@@ -928,6 +928,8 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
         for label, path in added.items():
             if len(seen) in path:
                 res.estimates = with_object(res.estimates, label, path[len(seen)])
+                res.age, res.since_detected = (np.append(a, 0.0) for a in
+                                               (res.age, res.since_detected))
         return state, res
 
     monkeypatch.setattr(rp, 'step', step)

@@ -61,6 +61,7 @@ def tracks_data(result, cfg) -> dict:
             'position': {'x': float(e.m[j, 0]), 'y': float(e.m[j, 1]), 'z': 0.0},
             'velocity': {'x': float(e.m[j, 2]), 'y': float(e.m[j, 3]), 'z': 0.0},
             'position_covariance': e.P[j, :2, :2].astype(float).ravel(),
+            'velocity_covariance': e.P[j, 2:, 2:].astype(float).ravel(),
             'extent': e.X[j].astype(float).ravel(),
             'semi_major': float(major[j]),
             'semi_minor': float(minor[j]),
@@ -71,6 +72,8 @@ def tracks_data(result, cfg) -> dict:
             'measurement_rate': float(e.rate[j]),
             'num_detections': int(e.num_detections[j]),
             'visibility': float(np.clip(e.visibility[j], 0.0, 1.0)),
+            'age': float(result.age[j]),
+            'time_since_detected': float(result.since_detected[j]),
         })
     return {
         'header': header_data(result.stamp_ns, result.frame_id),
