@@ -195,8 +195,12 @@ def cmd_results(args) -> int:
     from .evaluation.evaluate import results_table, scenario_notes, write_readme_results
 
     if args.readme:
+        from .evaluation.recorded import write_recorded_results
+
         write_readme_results(Path(args.readme))
         print(f'results written into {args.readme}')
+        if write_recorded_results(Path(args.readme), Path(args.recordings)):
+            print('and the recordings with truth (../shared/data/moving) too')
     else:
         print(scenario_notes())
         print()
@@ -263,6 +267,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_evaluate)
     res = sub.add_parser('results', help='run the scenario suite (CPHD/PHD x p_D models)')
     res.add_argument('--readme', help='write the table into this file between its markers')
+    res.add_argument('--recordings', default='../shared/data/moving',
+                     help='recordings with motion-capture truth to score too, where they are '
+                          '(default: %(default)s)')
     res.set_defaults(func=cmd_results)
     # add_help=False: bench's options, --help included, go to the benchmark's own parser
     b = sub.add_parser('bench', add_help=False,

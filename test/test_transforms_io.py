@@ -255,3 +255,28 @@ def test_with_a_bag_clock_the_wait_runs_on_the_bag_time():
         tick(t0 + S // 2)
         assert h.spin_until(lambda: len(h.tracks) > n)
         assert h.node.counts == {'transform_late': 1}
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not MOVING.is_dir(), reason=f'no moving recordings at {MOVING}')
+def test_the_cars_of_the_moving_recordings_are_tracked_against_motion_capture():
+    """Replayed in odom with the defaults: each car the laser sees (3 returns within
+    0.3 m) is tracked within 0.2 m on average in most scans it is seen in, by one id in
+    the recordings with one car."""
+    from extended_tracker.evaluation.recorded import score_recording
+
+    for name, least in (('datmo_intersection', 20), ('datmo_overtake_red', 85)):
+        scores, _, frame = score_recording(MOVING / name,
+                                           MOVING / f'{name}.ground_truth.csv')
+        (s,) = scores.values()
+        assert frame == 'odom' and s.tracked >= least and len(s.ids) == 1
+        assert np.mean(s.errors) < 0.2
+
+
+def test_recordings_are_scored_only_where_they_are(tmp_path):
+    from extended_tracker.evaluation.recorded import BEGIN, END, write_recorded_results
+
+    page = tmp_path / 'results.md'
+    page.write_text(f'# r\n{BEGIN}\nold\n{END}\n')
+    assert not write_recorded_results(page, tmp_path / 'none')
+    assert page.read_text() == f'# r\n{BEGIN}\nold\n{END}\n'

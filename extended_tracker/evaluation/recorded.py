@@ -79,15 +79,41 @@ def score_recording(bag, truth_csv, cfg: TrackerConfig | None = None):
     return scores, unmatched / max(scans, 1), frame
 
 
-def main(folder='../shared/data/moving') -> None:
-    """Print the scores of every recording in ``folder``."""
+MOVING = Path('../shared/data/moving')      # from the repository's root, as make runs
+BEGIN, END = '<!-- recorded:begin -->', '<!-- recorded:end -->'
+
+
+def recorded_table(folder=MOVING) -> str:
+    """The table of every recording with truth in ``folder``: per target, the scans it
+    was tracked in of those the scan saw it in, the mean position error and the ids;
+    per recording, the estimates matching no target (other objects, walls, clutter)."""
+    lines = ['| recording | target | tracked / seen (scans) | mean error (m) | ids | '
+             'other estimates per scan |', '|---|---|---|---|---|---|']
     for csv_path in sorted(Path(folder).glob('*.ground_truth.csv')):
         bag = csv_path.with_name(csv_path.name.removesuffix('.ground_truth.csv'))
-        scores, false_per_scan, frame = score_recording(bag, csv_path)
-        print(f'{bag.name} (in {frame or "the scan frame"}): {false_per_scan:.2f} other '
-              f'estimates per scan')
+        scores, others, frame = score_recording(bag, csv_path)
         for name, s in sorted(scores.items()):
-            print('  ' + s.line(name))
+            err = np.mean(s.errors) if s.errors else float('nan')
+            lines.append(f'| {bag.name} | {name} | {s.tracked} / {s.seen} | {err:.2f} | '
+                         f'{len(s.ids)} | {others:.2f} |')
+    return '\n'.join(lines)
+
+
+def write_recorded_results(path: Path, folder=MOVING) -> bool:
+    """Replace the recorded-truth section of ``path`` between its markers; False (and
+    nothing written) where ``folder`` holds no recordings."""
+    if not any(Path(folder).glob('*.ground_truth.csv')):
+        return False
+    text = path.read_text()
+    head, rest = text.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    path.write_text(f'{head}{BEGIN}\n{recorded_table(folder)}\n{END}{tail}')
+    return True
+
+
+def main(folder=MOVING) -> None:
+    """Print the table of every recording in ``folder``."""
+    print(recorded_table(folder))
 
 
 if __name__ == '__main__':
