@@ -84,7 +84,7 @@ def drive():
 
 
 def test_a_person_standing_by_the_wall_reads_still_while_the_robot_drives(drive):
-    """The person stops at (6.4, 1.4) at 4 s; the robot drives past at 0.8 m/s and sees
+    """The person stops at (6.4, 1.5) at 4 s; the robot drives past at 0.8 m/s and sees
     them until about 9.5 s. Their track's ground speed stays within 0.2 m/s."""
     scene, data, res = drive
     speeds = []
@@ -104,8 +104,8 @@ def test_the_walls_the_robot_drives_past_are_not_tracked(drive):
     """Hardly a reported track stands on a wall (centre within 0.3 m of one) while the
     robot drives on and turns into the side corridor, and none for long: walls that come
     into view are in space never seen before, and a beam that grazes a wall does not
-    clear the wall's cells. (A far wall at the edge of range, or glimpsed past a corner
-    during the turn, is tracked for up to half a second: 11 of 341 reports.)"""
+    clear the wall's cells, nor does one that is only ever returned count as seen. (The
+    wall just round the corner is tracked for three scans during the turn.)"""
     scene, _, res = drive
     walls = np.asarray(scene.walls, float)
 
@@ -117,8 +117,7 @@ def test_the_walls_the_robot_drives_past_are_not_tracked(drive):
 
     shown = [(lab, m) for r in res for lab, m in zip(r.estimates.label, r.estimates.m[:, :2])]
     wall = [lab for lab, m in shown if on_wall(m)]
-    assert len(shown) > 300 and len(wall) <= 12, (len(wall), len(shown))
-    assert max(wall.count(lab) for lab in set(wall)) <= 5
+    assert len(shown) > 300 and len(wall) <= 3, (len(wall), len(shown))
 
 
 def test_the_overtaking_person_keeps_one_id(drive):

@@ -33,6 +33,7 @@ def test_a_real_recording_gives_its_figures(name, tmp_path):
     assert s.valid_detections / s.scans == pytest.approx(want['detections_per_scan'],
                                                          abs=TOL['detections_per_scan'])
     assert s.mean_count == pytest.approx(want['mean_count'], abs=TOL['mean_count'])
+    assert s.fixed_frame == want['fixed_frame']
 
 
 def test_every_recording_has_its_figures():

@@ -101,10 +101,10 @@ def recorded_table(folder=MOVING) -> str:
 
 def write_recorded_results(path: Path, folder=MOVING) -> bool:
     """Replace the recorded-truth section of ``path`` between its markers; False (and
-    nothing written) where ``folder`` holds no recordings."""
-    if not any(Path(folder).glob('*.ground_truth.csv')):
-        return False
+    nothing written) where ``folder`` holds no recordings or ``path`` has no section."""
     text = path.read_text()
+    if BEGIN not in text or END not in text or not any(Path(folder).glob('*.ground_truth.csv')):
+        return False
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
     path.write_text(f'{head}{BEGIN}\n{recorded_table(folder)}\n{END}{tail}')

@@ -15,9 +15,10 @@ plus and minus twice ``confirm_time``:
   and with no return in its 3 x 3 neighbourhood: a grazing beam and the odometry's
   drift keep it off the surface) loses it.
 
-A cell is *observed* once it held a return, a beam crossed it, or it lay within
-``BEHIND`` beyond a return (the inside of what the beam hit: an object that stood from
-start-up and then drives away from the scanner moves its near side into it). A return
+A cell is *observed* once a beam crossed it, or it lay inside what a beam hit (from a
+cell and a half to ``BEHIND`` beyond the return: an object that stood from start-up and
+then drives away from the scanner moves its near side into it). A surface only ever
+returned (a far wall, hit by a beam now and then) stays unobserved. A return
 is *background* (dropped) when a cell of its 3 x 3 neighbourhood (which absorbs the
 drift of odometry and the spacing of the beams)
 
@@ -57,8 +58,8 @@ BEHIND = 0.5                # m beyond a return that count as the inside of what
 @dataclass(frozen=True)
 class StaticMap:
     """
-    The grid, (n, n) arrays: ``score`` (s) and ``observed`` (seen occupied or crossed at
-    least once); and the fixed-frame index of its cell ``[0, 0]``.
+    The grid, (n, n) arrays: ``score`` (s) and ``observed`` (crossed by a beam, or inside
+    what one hit); and the fixed-frame index of its cell ``[0, 0]``.
     """
 
     corner: tuple[int, int]
@@ -123,7 +124,7 @@ def update_static_map(smap: StaticMap | None, sp: ScanPoints, pose: Pose2, dt: f
     cap = 2.0 * cfg.confirm_time
     score[hit] = np.minimum(score[hit] + dt, cap)
     score[freed] = np.maximum(score[freed] - dt, -cap)
-    new = StaticMap(smap.corner, smap.cell, score, smap.observed | hit | crossed | behind)
+    new = StaticMap(smap.corner, smap.cell, score, smap.observed | crossed | behind)
     background = _background(new, ij, inside, protected[sp.beam], cfg.confirm_time,
                              unknown=~smap.observed)
     return new, background, background & ~before
@@ -139,11 +140,12 @@ def _background(smap: StaticMap, ij: np.ndarray, inside: np.ndarray, protected: 
 
 
 def _behind(smap: StaticMap, sp: ScanPoints, pose: Pose2) -> np.ndarray:
-    """The cells up to ``BEHIND`` beyond each return along its beam: the inside of what
-    the beam hit. Not unknown space: an object that stood still from start-up and then
-    moves away from the scanner moves its near side into them."""
-    return _along(smap, pose, sp.angles[sp.beam], sp.ranges[sp.beam],
-                  sp.ranges[sp.beam] + BEHIND)
+    """The cells from one and a half cells to ``BEHIND`` beyond each return along its
+    beam: the inside of what the beam hit (not its surface). Not unknown space: an
+    object that stood still from start-up and then moves away from the scanner moves its
+    near side into them."""
+    r = sp.ranges[sp.beam]
+    return _along(smap, pose, sp.angles[sp.beam], r + 1.5 * smap.cell, r + BEHIND)
 
 
 def _along(smap: StaticMap, pose: Pose2, angles: np.ndarray, start: np.ndarray,

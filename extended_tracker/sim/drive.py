@@ -29,8 +29,8 @@ def corridor_drive_scene() -> Scene:
         ((5.0, -2.0), (5.0, -1.5)), ((5.0, -1.5), (6.2, -1.5)), ((6.2, -1.5), (6.2, -2.0)),
     )
     people = (
-        SimObject((9.0, 0.9), (-1.1, 0.0), kind='oncoming'),
-        SimObject((4.0, 0.6), (0.6, 0.2), stops=((4.0, math.inf),), kind='standing'),
+        SimObject((9.0, 0.7), (-1.1, 0.0), kind='oncoming'),
+        SimObject((4.0, 1.5), (0.6, 0.0), stops=((4.0, math.inf),), kind='standing'),
         SimObject((-2.0, -0.9), (1.4, 0.0), t_start=1.0, t_end=11.0, kind='overtaking'),
         SimObject((11.0, 8.5), (0.0, -1.0), t_start=13.0, kind='side_corridor'),
         SimObject((12.5, 6.0), (0.0, 0.8), t_start=13.0, kind='ahead'),
