@@ -33,7 +33,6 @@ with the background re-mapped to its beams by angle, event ``scan_layout_changed
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-import math
 import time
 
 import numpy as np
@@ -42,6 +41,7 @@ from .config import TrackerConfig
 from .diagnostics import Diagnostics
 from .errors import ScanError
 from .filter.state import FilterState, predict_state
+from .frames.motion import frame_jump
 from .frames.pose import Placement, Pose2
 from .sensing.background import BackgroundState
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
@@ -58,8 +58,6 @@ EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'for
 #: rad) still stands there: odometry's jitter on a parked robot does not reset it
 STILL_DISTANCE = 0.05
 STILL_ANGLE = 0.01
-#: a jump of the fixed frame is at least this far (m, rad), whatever the scan period
-MIN_JUMP = 0.2
 
 
 @dataclass(frozen=True)
@@ -197,7 +195,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
         return state, scan_in
     sp, dt, event, error = scan_in.points, scan_in.dt, scan_in.event, scan_in.error
     pose = place.pose if place is not None else None
-    state = _anchored(state, pose, scan_in.event == 'frame_jump')
+    state, leaving = _anchored(state, pose, scan_in.event == 'frame_jump')
     diag = _scan_counts(sp)
     if _layout_changed(state.background, sp, cfg):
         event, error = _with_event(event, error, 'scan_layout_changed',
@@ -213,7 +211,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
         event, error = _with_event(event, error, 'unexplained_scan',
                                    _unexplained(len(fg.points), cfg))
     times = state.times.updated(estimates, scan_in.stamp_ns)
-    new_state = replace(state, filter=filt, tracks=tracks, background=fg.background,
+    new_state = replace(state, filter=filt, tracks=tracks,
+                        background=None if leaving else fg.background,
                         static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
                         frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
                         scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
@@ -225,23 +224,25 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                                  *times.of(estimates, scan_in.stamp_ns))
 
 
-def _anchored(state: PipelineState, pose: Pose2 | None, jumped: bool) -> PipelineState:
+def _anchored(state: PipelineState, pose: Pose2 | None, jumped: bool):
     """
-    The state with its per-beam background valid where the scanner stands: learned anew
-    (and the static map put to use) once the scanner moved from where it was learned.
-    After a jump of the fixed frame the scanner stands where it stood, but the static
-    map, learned in the old frame, is dropped.
+    ``(state, leaving)``: the state anchored where the scanner stands, and whether it
+    has just left the place its per-beam background was learned at. That background
+    still judges this scan (it is a few centimetres off: it seeds the static map, which
+    is put to use from now on) and is learned anew from the next. After a jump of the
+    fixed frame the scanner stands where it stood, but the static map, learned in the
+    old frame, is dropped.
     """
     if pose is None:
-        return state
+        return state, False
     if jumped:
-        return replace(state, anchor=pose, static_map=None)
+        return replace(state, anchor=pose, static_map=None), False
     if state.anchor is None:
-        return replace(state, anchor=pose)
+        return replace(state, anchor=pose), False
     metres, radians = state.anchor.distance_to(pose)
     if metres <= STILL_DISTANCE and radians <= STILL_ANGLE:
-        return state
-    return replace(state, anchor=pose, background=None, moving=True)
+        return state, False
+    return replace(state, anchor=pose, moving=True), True
 
 
 @dataclass(frozen=True)
@@ -323,24 +324,6 @@ def scan_period(last_ns: int | None, now_ns: int, cfg: TrackerConfig):
             f'{dt:.3f} s since the previous scan, over timing.max_gap '
             f'({cfg.timing.max_gap:g} s): tracks restarted')
     return dt, None, None
-
-
-def frame_jump(last: Pose2 | None, pose: Pose2, dt: float, cfg: TrackerConfig):
-    """
-    ``(event, error)`` of a scanner pose that moved from the last scan's faster than
-    ``tf.jump_speed`` or turned faster than ``tf.jump_turn_rate`` (and at least
-    :data:`MIN_JUMP`): the fixed frame jumped (a localisation reset, a relocalised map),
-    and tracks carried across would smear. ``(None, None)`` otherwise.
-    """
-    if last is None:
-        return None, None
-    metres, radians = last.distance_to(pose)
-    if (metres > max(cfg.tf.jump_speed * dt, MIN_JUMP)
-            or radians > max(cfg.tf.jump_turn_rate * dt, MIN_JUMP)):
-        return 'frame_jump', (f'the scanner moved {metres:.2f} m and turned '
-                              f'{math.degrees(radians):.0f} deg in the fixed frame in '
-                              f'{dt:.3f} s (a localisation reset?): tracks restarted')
-    return None, None
 
 
 def _scan_counts(sp: ScanPoints) -> Diagnostics:

@@ -61,10 +61,11 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     the filter runs predict-only steps while the background is learned, so walls are
     never tracked.
 
-    With the scanner's ``pose`` in a fixed frame, the static map is learned there too
-    (:mod:`sensing.static_map`) and, once the scanner has moved, drops the returns on
-    static structure with the per-beam background (learned anew wherever the scanner
-    stops). The points come back in the fixed frame.
+    With the scanner's ``pose`` in a fixed frame, once the scanner has moved, the static
+    map learned there (:mod:`sensing.static_map`), seeded with what the per-beam
+    background knew, drops returns too, with the per-beam background (learned anew
+    wherever the scanner stops). A scanner that never moves costs nothing more. The
+    points come back in the fixed frame.
     """
     empty = np.zeros((0, 2))
     view = pose or Pose2()
@@ -82,12 +83,13 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     background, keep = update_background(state.background, sp, dt, bgc, protect, near)
     learned = background.learned[sp.beam]
     static_map = state.static_map
-    if pose is not None:
+    if pose is not None and state.moving:
+        if static_map is None:              # the scanner starts to move: what the
+            static_map = StaticMap.seeded(pose, sp, ~keep, bgc)   # background knew
         static_map, on_map, map_learned = update_static_map(static_map, sp, pose, dt, bgc,
                                                             protect)
-        if state.moving:
-            keep &= ~on_map
-            learned |= map_learned
+        keep &= ~on_map
+        learned |= map_learned
     diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
     points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
     if state.elapsed + dt <= bgc.warmup:

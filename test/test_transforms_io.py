@@ -265,7 +265,7 @@ def test_the_cars_of_the_moving_recordings_are_tracked_against_motion_capture():
     the recordings with one car."""
     from extended_tracker.evaluation.recorded import score_recording
 
-    for name, least in (('datmo_intersection', 20), ('datmo_overtake_red', 85)):
+    for name, least in (('datmo_intersection', 16), ('datmo_overtake_red', 85)):
         scores, _, frame = score_recording(MOVING / name,
                                            MOVING / f'{name}.ground_truth.csv')
         (s,) = scores.values()

@@ -74,6 +74,21 @@ class StaticMap:
         return StaticMap((int(centre[0]) - n // 2, int(centre[1]) - n // 2), cfg.map_cell,
                          np.zeros((n, n), np.float32), np.zeros((n, n), bool))
 
+    @staticmethod
+    def seeded(pose: Pose2, sp: ScanPoints, background: np.ndarray, cfg) -> 'StaticMap':
+        """
+        A map around a scanner that starts to move, from what its per-beam background
+        knew of this scan's returns (``background``, a mask over ``sp.points``): those
+        cells static, the cells of the others seen (so they are judged by their score,
+        not as unknown space). The beams' crossings are added by the first update.
+        """
+        smap = StaticMap.around(pose, cfg)
+        ij, inside = smap.index(pose.to_outer(sp.points))
+        smap.observed[ij[inside, 0], ij[inside, 1]] = True
+        static = inside & background
+        smap.score[ij[static, 0], ij[static, 1]] = 2.0 * cfg.confirm_time
+        return smap
+
     def recentred(self, pose: Pose2, cfg) -> 'StaticMap':
         """The map scrolled (by whole cells) to keep the scanner within its middle half;
         the cells that leave are forgotten."""
@@ -212,9 +227,6 @@ def _incidence(sp: ScanPoints) -> np.ndarray:
     return out
 
 
-_NEIGHBOURS = np.array([(di, dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)])
-
-
 def _box3(a: np.ndarray) -> np.ndarray:
     """Whether each cell's 3 x 3 neighbourhood holds a True cell."""
     p = np.pad(a, 1)
@@ -225,15 +237,9 @@ def _box3(a: np.ndarray) -> np.ndarray:
 def _near(marked: np.ndarray, ij: np.ndarray, inside: np.ndarray,
           off_grid: bool = False) -> np.ndarray:
     """Which points (grid indices ``ij``) have a ``marked`` cell among their cell's 3 x 3
-    (a cell off the grid counts as marked when ``off_grid``)."""
-    n = len(marked)
-    out = np.zeros(len(ij), bool)
-    for d in _NEIGHBOURS:
-        k = ij + d
-        ok = np.all((k >= 0) & (k < n), axis=1)
-        out[ok] |= marked[k[ok, 0], k[ok, 1]]
-        if off_grid:
-            out |= ~ok
+    (a point off the grid counts as near one when ``off_grid``)."""
+    out = np.full(len(ij), off_grid)
+    out[inside] = _box3(marked)[ij[inside, 0], ij[inside, 1]]
     return out
 
 
