@@ -1,14 +1,14 @@
 """
 ``ros2 launch extended_tracker tracker.launch.py [scan:=/front/scan] [preset:=leg_height]
 [params_file:=/path/to/tracker.yaml] [use_sim_time:=true] [namespace:=front]
-[rviz:=true [rviz_frame:=laser]]``
+[rviz:=true [rviz_frame:=odom]]``
 
 Starts ``tracker_node`` with the installed ``config/tracker.yaml`` (or ``params_file``),
 then the preset's changes (``config/<preset>.yaml``) when one is named, and the input topic
 remapped to ``scan``. ``use_sim_time`` for a bag played with ``ros2 bag play --clock``.
 ``rviz:=true`` also starts RViz2 with the installed ``rviz/tracker.rviz``, its scan display
-on ``scan`` and its fixed frame ``rviz_frame`` (the scan's ``frame_id`` when no TF is
-published); that config is a copy written to a temporary directory, removed when the
+on ``scan`` and its fixed frame ``rviz_frame`` (the tracks' frame, ``tf.fixed_frame``:
+odom; the scan's ``frame_id`` for a scanner with no TF); that config is a copy written to a temporary directory, removed when the
 launch shuts down. ``namespace`` puts the node (and RViz) in a namespace, as does
 including the launch under ``PushRosNamespace`` (a relative ``namespace`` goes inside a
 pushed one): one tracker per scanner, ``namespace:=front`` and ``namespace:=rear``. The
@@ -136,8 +136,9 @@ def generate_launch_description():
                                           'front, rear)'),
         DeclareLaunchArgument('rviz', default_value='false',
                               description='also start RViz2 with the scan and the tracks'),
-        DeclareLaunchArgument('rviz_frame', default_value='laser',
-                              description="RViz's fixed frame: the scan's frame_id when no "
-                                          'TF is published'),
+        DeclareLaunchArgument('rviz_frame', default_value='odom',
+                              description="RViz's fixed frame: the tracks' frame "
+                                          '(tf.fixed_frame); the scan\'s frame_id for a '
+                                          'scanner with no TF'),
         OpaqueFunction(function=_node),
     ])

@@ -81,7 +81,7 @@ def test_node_gets_the_installed_parameters_and_the_remapped_scan(launch_module)
 
     declared, make_node = _args(launch_module.generate_launch_description())
     assert declared == {'scan': 'scan', 'preset': '', 'params_file': '', 'use_sim_time': 'false',
-                        'namespace': '', 'rviz': 'false', 'rviz_frame': 'laser'}
+                        'namespace': '', 'rviz': 'false', 'rviz_frame': 'odom'}
     (node,) = make_node(dict(declared, scan='/front/scan'))       # no RViz unless asked
     kw = node.kwargs
     assert kw['package'] == 'extended_tracker' and kw['name'] == 'extended_tracker'
