@@ -280,3 +280,35 @@ def test_recordings_are_scored_only_where_they_are(tmp_path):
     page.write_text(f'# r\n{BEGIN}\nold\n{END}\n')
     assert not write_recorded_results(page, tmp_path / 'none')
     assert page.read_text() == f'# r\n{BEGIN}\nold\n{END}\n'
+
+
+def test_the_transform_parameters_are_refused_at_run_time():
+    from rclpy.parameter import Parameter
+
+    with NodeHarness({'background.enabled': False}) as h:
+        (result,) = h.node.set_parameters([Parameter('tf.fixed_frame', value='map')])
+        assert not result.successful and 'read at start-up' in result.reason
+        assert h.node.cfg.tf.fixed_frame == 'odom'
+        (same,) = h.node.set_parameters([Parameter('tf.fixed_frame', value='odom')])
+        assert same.successful
+
+
+def test_the_static_map_keeps_its_cells_in_place_as_it_scrolls():
+    """The grid follows the scanner by whole cells: a cell's score stays with its place
+    in the fixed frame, and what falls off the edge is forgotten."""
+    from extended_tracker.config import BackgroundConfig
+    from extended_tracker.sensing.static_map import StaticMap
+
+    cfg = BackgroundConfig(map_radius=2.0)
+    smap = StaticMap.around(Pose2(0.0, 0.0, 0.0), cfg)
+    here, far = np.array([[0.55, -0.35]]), np.array([[-1.9, 0.0]])
+    for p, v in ((here, 1.5), (far, 0.7)):
+        ij, _ = smap.index(p)
+        smap.score[ij[0, 0], ij[0, 1]] = v
+    moved = smap.recentred(Pose2(1.5, 0.5, 0.0), cfg)
+    assert moved is not smap and moved.corner != smap.corner
+    ij, inside = moved.index(here)
+    assert inside[0] and moved.score[ij[0, 0], ij[0, 1]] == np.float32(1.5)
+    assert not moved.index(far)[1][0]                     # off the grid now
+    assert np.count_nonzero(moved.score) == 1
+    assert smap.recentred(Pose2(0.3, 0.2, 1.0), cfg) is smap   # within the middle half

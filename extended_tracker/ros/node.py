@@ -183,6 +183,10 @@ class TrackerNode(Node):
         for p in params:
             if p.name not in flat:
                 continue
+            if p.name.startswith('tf.') and p.value != flat[p.name]:
+                # the transform source and the scans' queue are made at start-up
+                return SetParametersResult(successful=False, reason=(
+                    f'{p.name} is read at start-up: restart the node to change it'))
             flat[p.name] = list(p.value) if isinstance(flat[p.name], list) else p.value
         try:
             new_cfg = from_flat(flat)
