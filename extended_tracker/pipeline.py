@@ -43,6 +43,7 @@ from .errors import ScanError
 from .filter.state import FilterState, predict_state
 from .frames.motion import frame_jump
 from .frames.pose import Placement, Pose2
+from .scanners import anchored, seen_elsewhere, View, with_scanner
 from .sensing.background import BackgroundState
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
 from .sensing.static_map import StaticMap
@@ -54,10 +55,6 @@ from .tracks.times import TrackTimes
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
           'unexplained_scan', 'zero_stamp', 'scan_layout_changed', 'frame_jump')
 
-#: the scanner moved less than this from where the per-beam background was learned (m,
-#: rad) still stands there: odometry's jitter on a parked robot does not reset it
-STILL_DISTANCE = 0.05
-STILL_ANGLE = 0.01
 
 
 @dataclass(frozen=True)
@@ -90,6 +87,10 @@ class PipelineState:
         The scanner has moved in the fixed frame: the static map drops returns.
     times : TrackTimes
         When each shown id was first shown and last updated by returns.
+    scanner : str or None
+        The frame of the scanner ``background``, ``anchor`` and ``pose`` belong to (the
+        last scan's); ``others`` holds those of the other scanners placed in the fixed
+        frame, ``{frame: Scanner}`` (:func:`scanners.with_scanner`).
 
     """
 
@@ -107,6 +108,9 @@ class PipelineState:
     anchor: Pose2 | None = None
     moving: bool = False
     times: TrackTimes = field(default_factory=TrackTimes)
+    scanner: str | None = None
+    others: dict = field(default_factory=dict)
+    view: View | None = None
 
     @staticmethod
     def initial(cfg: TrackerConfig) -> 'PipelineState':
@@ -194,17 +198,19 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     if isinstance(scan_in, StepResult):
         return state, scan_in
     sp, dt, event, error = scan_in.points, scan_in.dt, scan_in.event, scan_in.error
+    state = scan_in.state                   # with the scan's scanner's own parts
     pose = place.pose if place is not None else None
-    state, leaving = _anchored(state, pose, scan_in.event == 'frame_jump')
+    state, leaving = anchored(state, pose, scan_in.event == 'frame_jump')
     diag = _scan_counts(sp)
     if _layout_changed(state.background, sp, cfg):
         event, error = _with_event(event, error, 'scan_layout_changed',
                                    _layout_change(state.background, sp))
-    fg = remove_background(state, scan_in.tracks, sp, dt, cfg, diag, pose)
+    fg = remove_background(state, scan_in.tracks, sp, dt, cfg, diag, pose, scan_in.own_dt)
     pred = predict_state(scan_in.filter, dt, cfg)
     pred = drop_absorbed(pred, fg.learned, fg.points, cfg, diag,
                          first_new=scan_in.filter.next_label)
-    pred, vis = detect(pred, sp, cfg, diag, pose)
+    pred, vis = detect(pred, sp, cfg, diag, pose,
+                       seen_elsewhere(state, pred.mixture.m[:, :2]))
     filt, tracks, estimates = update_tracks(pred, scan_in.tracks, fg.points, sp, vis, cfg, dt,
                                             diag, pose)
     if diag.unexplained:
@@ -216,7 +222,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                         static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
                         frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
                         scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
-                        times=times)
+                        times=times, view=pose and View(pose, sp.angle_lo, sp.angle_hi,
+                                                        sp.range_max, sp.full_turn))
     card, mean = _card_of(new_state)
     return new_state, StepResult(scan_in.stamp_ns, scan_in.frame_id, estimates, card, mean,
                                  fg.points, fg.background_points, diag, event, error,
@@ -224,31 +231,11 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                                  *times.of(estimates, scan_in.stamp_ns))
 
 
-def _anchored(state: PipelineState, pose: Pose2 | None, jumped: bool):
-    """
-    ``(state, leaving)``: the state anchored where the scanner stands, and whether it
-    has just left the place its per-beam background was learned at. That background
-    still judges this scan (it is a few centimetres off: it seeds the static map, which
-    is put to use from now on) and is learned anew from the next. After a jump of the
-    fixed frame the scanner stands where it stood, but the static map, learned in the
-    old frame, is dropped.
-    """
-    if pose is None:
-        return state, False
-    if jumped:
-        return replace(state, anchor=pose, static_map=None), False
-    if state.anchor is None:
-        return replace(state, anchor=pose), False
-    metres, radians = state.anchor.distance_to(pose)
-    if metres <= STILL_DISTANCE and radians <= STILL_ANGLE:
-        return state, False
-    return replace(state, anchor=pose, moving=True), True
-
-
 @dataclass(frozen=True)
 class _Accepted:
     """A scan placed in time (:func:`_accept`): its points, stamp, frame and period, the
-    filter and record to go on from (fresh after a restart), and its event and reason."""
+    filter and record to go on from (fresh after a restart), its event and reason, and
+    the state with its scanner's own parts (:func:`scanners.with_scanner`)."""
 
     points: ScanPoints
     stamp_ns: int
@@ -258,6 +245,8 @@ class _Accepted:
     tracks: TrackRecord
     event: str | None
     error: str | None
+    state: PipelineState
+    own_dt: float
 
 
 def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
@@ -280,7 +269,9 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
                             cfg.scan.range_max_inclusive)
     except ScanError as err:
         return _repeat(state, now, frame, 'malformed_scan', str(err), t0)
+    scanner_ns = state.last_stamp_ns
     if place is not None:
+        state, scanner_ns = with_scanner(state, frame)
         frame = place.frame
     if state.frame_id is not None and frame != state.frame_id:
         # tracks in another frame are not comparable: the previous estimates stand
@@ -290,8 +281,10 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
         return _repeat(state, now, frame, 'repeated_stamp',
                        'the same stamp as the previous scan: not used again', t0)
     dt, event, error = scan_period(state.last_stamp_ns, now, cfg)
-    if event is None and place is not None:
-        event, error = frame_jump(state.pose, place.pose, dt, cfg)
+    own_dt = dt if scanner_ns in (None, state.last_stamp_ns) or event else (
+        (now - scanner_ns) * 1e-9)
+    if event is None and place is not None and scanner_ns is not None:
+        event, error = frame_jump(state.pose, place.pose, own_dt, cfg)
     filt, tracks = state.filter, state.tracks
     if event is not None:
         filt, tracks = _reset(filt, cfg), TrackRecord()
@@ -299,7 +292,7 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
         event = 'zero_stamp'
         error = ('the header stamp is zero (a driver that does not set it?): the scan is '
                  'taken at its arrival time')
-    return _Accepted(sp, now, frame, dt, filt, tracks, event, error)
+    return _Accepted(sp, now, frame, dt, filt, tracks, event, error, state, own_dt)
 
 
 def scan_period(last_ns: int | None, now_ns: int, cfg: TrackerConfig):

@@ -50,8 +50,8 @@ class Foreground:
 
 
 def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints, dt: float,
-                      cfg: TrackerConfig, diag: Diagnostics,
-                      pose: Pose2 | None = None) -> Foreground:
+                      cfg: TrackerConfig, diag: Diagnostics, pose: Pose2 | None = None,
+                      own_dt: float | None = None) -> Foreground:
     """
     Drop static returns; never learn those of tracks that have moved.
 
@@ -80,7 +80,10 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
     protect, near = beams_near_tracks(sp, view.to_inner(est.m[:, :2]), major, bgc.track_gate,
                                       guard)
-    background, keep = update_background(state.background, sp, dt, bgc, protect, near)
+    # the per-beam background ages by its own scanner's period (several scanners take
+    # turns: the time since the last scan is another's)
+    background, keep = update_background(state.background, sp, dt if own_dt is None else own_dt,
+                                         bgc, protect, near)
     learned = background.learned[sp.beam]
     static_map = state.static_map
     if pose is not None and state.moving:
@@ -135,7 +138,8 @@ def absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) -
 
 
 def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig, diag: Diagnostics,
-           pose: Pose2 | None = None) -> tuple[FilterState, Visibility]:
+           pose: Pose2 | None = None,
+           elsewhere: np.ndarray | None = None) -> tuple[FilterState, Visibility]:
     """
     The detection model of the predicted components; drop those that are no object in
     view.
@@ -146,7 +150,9 @@ def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig, diag: Diagnost
     made of clutter: not objects, so their weight leaves the cardinality too.
 
     The model reads the components in the scanner's frame (at ``pose`` in the fixed
-    frame); the centroid offsets it gives are turned back into the fixed frame.
+    frame); the centroid offsets it gives are turned back into the fixed frame. With
+    several scanners, a component out of this one's view that another scanner looks at
+    (``elsewhere``) is kept: this scan cannot see it, that one can.
     """
     view = pose or Pose2()
     vis = detection_model(mixture_to_inner(view, pred.mixture), sp, cfg)
@@ -154,6 +160,8 @@ def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig, diag: Diagnost
         vis = replace(vis, offset=view.vectors_to_outer(vis.offset))
     if vis.outside is None:
         return pred, vis
+    if elsewhere is not None:
+        vis = replace(vis, outside=vis.outside & ~elsewhere)
     drop = vis.outside | vis.at_sensor | vis.sparse
     if not drop.any():
         return pred, vis

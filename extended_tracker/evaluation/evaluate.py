@@ -20,6 +20,7 @@ from ..frames.pose import Placement, Pose2
 from ..pipeline import PipelineState, step
 from ..sim import laser
 from ..sim.drive import corridor_drive_scene
+from ..sim.two_scanners import two_scanner_scans, two_scanner_scenes
 from .metrics import score_sequence
 
 GOSPA_C = 2.0          # m, cut-off
@@ -52,6 +53,11 @@ SCENARIOS = {
                        'and turning into the side corridor (270 deg / 0.5 deg / 13 m), '
                        'tracked in odom: people walking both ways, one who walks to the '
                        'wall and stands there, one overtaking the robot'),
+    'two_scanners': (two_scanner_scenes, 12.0, 8, {},
+                     'two 270 deg / 0.5 deg / 12 m scanners on opposite corners of a robot, '
+                     '0.05 s out of step, one tracker in base_link; a person circles the '
+                     'robot through both fields of view, two walk past (scored over the '
+                     'whole room, which both ranges cover)'),
 }
 VARIANTS = {
     'CPHD, scan shadow': {'model': {'mode': 'cphd'}, 'detection': {'model': 'scan_shadow'}},
@@ -134,19 +140,19 @@ def run_scenario(name: str, variant: dict):
 
     Scored over the region the scanner covers: objects outside its sector or beyond its
     range are not in the truth, and estimates there are not scored (a track may coast a
-    little past the range it left by).
+    little past the range it left by). A scene of several scanners is scored over all of
+    it.
     """
     factory, seconds, seed, overrides, _ = SCENARIOS[name]
     cfg = from_dict(merge_overrides(merge_overrides(SUITE_CONFIG, overrides), variant))
     state = PipelineState.initial(cfg)
     truth_seq, est_seq, hidden_seq = [], [], []
-    scene = factory()
-    for k, (scan, objs) in enumerate(laser.simulate(scene, seconds, seed=seed)):
+    scenes = factory()
+    several = isinstance(scenes, list)          # one scene per scanner: the whole room
+    for scan, objs, place in scenario_scans(scenes, seconds, seed):
         stopping.check()                 # a lost Ctrl-C: before `results` writes README
-        pose = scene.pose(k / scene.laser.rate_hz)
-        place = None if pose is None else Placement(scene.drive.fixed_frame, pose)
         state, res = step(state, scan, cfg, place=place)
-        view = view_of(scan, pose)
+        view = None if several else view_of(scan, place and place.pose)
         objs = objects_in_view(objs, view)             # once, for the truth and its hidden
         truth_seq.append(truth_of(objs))
         hidden_seq.append(hidden_of(objs))
@@ -154,6 +160,17 @@ def run_scenario(name: str, variant: dict):
         shown = in_view(e.m[:, :2], view)
         est_seq.append((e.label[shown].tolist(), e.m[shown, :2], e.X[shown]))
     return score_sequence(truth_seq, est_seq, GOSPA_C, GOSPA_P, hidden_seq)
+
+
+def scenario_scans(scenes, seconds: float, seed: int):
+    """``(scan, truth, place)`` of a scene (``place`` None for a scanner standing in the
+    walls' frame), or of a list of scenes (one per scanner) merged in stamp order."""
+    if isinstance(scenes, list):
+        yield from two_scanner_scans(seconds, seed, scenes)
+        return
+    for k, (scan, objs) in enumerate(laser.simulate(scenes, seconds, seed=seed)):
+        pose = scenes.pose(k / scenes.laser.rate_hz + scenes.laser.phase)
+        yield scan, objs, None if pose is None else Placement(scenes.drive.fixed_frame, pose)
 
 
 def results_table() -> str:

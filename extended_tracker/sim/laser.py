@@ -108,6 +108,7 @@ class LaserSpec:
     no_return: float = math.inf           # what a beam without a hit reports
     rate_hz: float = 10.0
     frame_id: str = 'laser'
+    phase: float = 0.0                    # s: the first scan's time (scanners out of step)
 
     @property
     def increment(self) -> float:
@@ -256,7 +257,7 @@ def simulated_scans(scene: Scene, duration: float, seed: int,
     wall_range = _ray_segments(d, walls[:, 0], walls[:, 1])
     n_scans = int(round(duration * L.rate_hz))
     for k in range(n_scans):
-        t = k / L.rate_hz
+        t = k / L.rate_hz + L.phase
         pose = scene.pose(t) or Pose2()
         if pose.is_identity:
             r = wall_range.copy()

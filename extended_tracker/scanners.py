@@ -1,0 +1,110 @@
+"""
+What each scanner keeps of its own, for the pipeline: its per-beam background, where
+that was learned, and its last pose in the fixed frame. Scanners placed in one fixed
+frame update one filter; each is judged against its own background and its own last
+pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .frames.pose import Pose2
+from .sensing.background import BackgroundState
+
+if TYPE_CHECKING:                                   # the pipeline imports these helpers
+    from .pipeline import PipelineState
+
+#: the scanner moved less than this from where the per-beam background was learned (m,
+#: rad) still stands there: odometry's jitter on a parked robot does not reset it
+STILL_DISTANCE = 0.05
+STILL_ANGLE = 0.01
+
+
+@dataclass(frozen=True)
+class View:
+    """Where a scanner looked in its last scan: its pose in the fixed frame and its
+    field of view (rad, in its own frame) out to its range (m)."""
+
+    pose: Pose2
+    angle_lo: float
+    angle_hi: float
+    range_max: float
+    full_turn: bool
+
+    def sees(self, xy: np.ndarray) -> np.ndarray:
+        """Which of the points ``xy`` (fixed frame) lie in this field of view."""
+        p = self.pose.to_inner(xy)
+        near = np.hypot(p[:, 0], p[:, 1]) <= self.range_max
+        if self.full_turn:
+            return near
+        bearing = np.arctan2(p[:, 1], p[:, 0])
+        mid = 0.5 * (self.angle_lo + self.angle_hi)
+        off = np.abs((bearing - mid + math.pi) % (2 * math.pi) - math.pi)
+        return near & (off <= 0.5 * (self.angle_hi - self.angle_lo))
+
+
+def seen_elsewhere(state: 'PipelineState', xy: np.ndarray) -> np.ndarray | None:
+    """Which of the points ``xy`` (fixed frame) another scanner looked at in its last
+    scan; None with one scanner."""
+    views = [sc.view for sc in state.others.values() if sc.view is not None]
+    if not views:
+        return None
+    return np.any([v.sees(xy) for v in views], axis=0)
+
+
+@dataclass(frozen=True)
+class Scanner:
+    """What each scanner keeps of its own: its per-beam background, where that was
+    learned, and its last pose and stamp in the fixed frame."""
+
+    background: BackgroundState | None = None
+    anchor: Pose2 | None = None
+    pose: Pose2 | None = None
+    pose_ns: int | None = None
+    view: View | None = None
+
+
+def with_scanner(state: 'PipelineState', frame: str):
+    """
+    ``(state, last_ns)``: the state with scanner ``frame``'s own parts in ``background``,
+    ``anchor`` and ``pose``, the current scanner's put aside, and the stamp of that
+    scanner's last scan. Each scanner placed in the fixed frame learns its own
+    background and is checked for jumps against its own last pose.
+    """
+    if state.scanner in (None, frame):
+        return replace(state, scanner=frame), state.last_stamp_ns
+    others = dict(state.others)
+    others[state.scanner] = Scanner(state.background, state.anchor, state.pose,
+                                    state.last_stamp_ns, state.view)
+    mine = others.pop(frame, Scanner())
+    return replace(state, scanner=frame, others=others, background=mine.background,
+                   anchor=mine.anchor, pose=mine.pose, view=mine.view), mine.pose_ns
+
+
+def anchored(state: 'PipelineState', pose: Pose2 | None, jumped: bool):
+    """
+    ``(state, leaving)``: the state anchored where the scanner stands, and whether it
+    has just left the place its per-beam background was learned at. That background
+    still judges this scan (it is a few centimetres off: it seeds the static map, which
+    is put to use from now on) and is learned anew from the next. After a jump of the
+    fixed frame the scanner stands where it stood, but the static map, learned in the
+    old frame, is dropped.
+    """
+    if pose is None:
+        return state, False
+    if jumped:
+        return replace(state, anchor=pose, static_map=None), False
+    if state.anchor is None:
+        return replace(state, anchor=pose), False
+    metres, radians = state.anchor.distance_to(pose)
+    if metres <= STILL_DISTANCE and radians <= STILL_ANGLE:
+        return state, False
+    return replace(state, anchor=pose, moving=True), True
+
+
+__all__ = ['Scanner', 'View', 'seen_elsewhere', 'with_scanner', 'anchored', 'STILL_DISTANCE', 'STILL_ANGLE']
