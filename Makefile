@@ -34,7 +34,7 @@ demo: setup
 	fi
 
 real: setup
-	$(TRACKER) real --data $(REAL) --out out/real
+	$(TRACKER) real --data $(REAL) --out out/real --mounts-dir config/mounts
 
 bench: setup
 	$(TRACKER) bench --memory 20000

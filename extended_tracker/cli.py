@@ -26,11 +26,16 @@ import numpy as np
 from . import __version__, stopping
 from .errors import BagError, ConfigError, ExtendedTrackerError
 
-# bags in ../shared/data/real with more than one LaserScan topic: the one to replay
+# bags in ../shared/data/real with more than one LaserScan topic: the topics to replay
+# (Freiburg's two are one scanner published twice; the replay would take the busier)
 REAL_TOPICS = {
     'freiburg_corridor_stationary_sick': '/RAWLASER1',
-    'mir_legs_test_stationary': 'front_laser_link',
-    'obstacle_detector_scans_demo': '/front_scan',
+}
+# bags in ../shared/data/real with two scanners and no transforms between them: the
+# mounts file (in --mounts-dir, config/mounts) that places them on the robot
+REAL_MOUNTS = {
+    'mir_legs_test_stationary': 'mir_250.yaml',
+    'obstacle_detector_scans_demo': 'obstacle_detector_demo.yaml',
 }
 
 
@@ -60,10 +65,12 @@ def load_config(path, preset_name=None):
 
 def cmd_replay(args) -> int:
     from .bag.replay import replay
+    from .bag.scanners import load_mounts, Mounts
 
     cfg = load_config(args.config, args.preset)
+    mounts = load_mounts(args.mounts) if args.mounts else Mounts()
     summary = replay(args.input, args.output, cfg, args.scan_topic, args.plot,
-                     progress=not args.quiet, fixed_frame=args.fixed_frame)
+                     progress=not args.quiet, fixed_frame=args.fixed_frame, mounts=mounts)
     for line in summary.lines():
         print(line)
     print(f'output bag       {summary.output}')
@@ -72,7 +79,8 @@ def cmd_replay(args) -> int:
     return 0
 
 
-SCENES = ('demo', 'tutorial', 'occlusion', 'mixed_traffic', 'walls', 'corridor_drive')
+SCENES = ('demo', 'tutorial', 'occlusion', 'mixed_traffic', 'walls', 'corridor_drive',
+          'two_scanners')
 
 
 def cmd_simulate(args) -> int:
@@ -110,6 +118,7 @@ def _print_real(label: str, s, config: str) -> None:
 
 def cmd_real(args) -> int:
     from .bag.replay import replay
+    from .bag.scanners import load_mounts, Mounts
 
     data = Path(args.data)
     out = Path(args.out)
@@ -148,8 +157,10 @@ def cmd_real(args) -> int:
         name = REAL_PRESETS.get(label)
         cfg = given or load_config(None, name)
         try:
+            mounts = (load_mounts(Path(args.mounts_dir) / REAL_MOUNTS[label])
+                      if label in REAL_MOUNTS else Mounts())
             s = replay(bag, target, cfg, REAL_TOPICS.get(label), out / f'{label}.png',
-                       progress=False)
+                       progress=False, mounts=mounts)
         except BagError as err:              # one unreadable bag does not stop the others
             failed += 1
             print(f'{label:48s} not replayed: {err}')
@@ -215,19 +226,20 @@ def cmd_bench(args) -> int:
     return bench_main(args.passed_on)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _add_replay(sub) -> None:
+    """The ``replay`` command's options."""
     from .config import PRESETS
 
-    p = argparse.ArgumentParser(
-        prog='extended-tracker',
-        description='Extended object tracking in 2D laser scans: replay bags, simulate '
-                    'scenes, evaluate against truth, measure speed.')
-    p.add_argument('--version', action='version', version=f'%(prog)s {__version__}')
-    sub = p.add_subparsers(dest='command', required=True)
     r = sub.add_parser('replay', help='track the LaserScans of a bag into a new MCAP bag')
     r.add_argument('input', help='ROS 2 bag folder (sqlite3 or MCAP) or ROS 1 .bag')
     r.add_argument('--output', '-o', required=True, help='new ROS 2 bag folder (MCAP)')
-    r.add_argument('--scan-topic', help='LaserScan topic when the bag has several')
+    r.add_argument('--scan-topic', action='append',
+                   help='a LaserScan topic to track (again for several; default: every one, '
+                        'one of those that share a frame)')
+    r.add_argument('--mounts', metavar='FILE',
+                   help='the scanners\' mounts on the robot for a bag without their '
+                        'transforms (base_frame, mounts: {FRAME: [x, y, yaw]}; '
+                        'config/mounts/ has examples)')
     r.add_argument('--fixed-frame', metavar='FRAME',
                    help='frame to track in, linked to the scan frame by the bag\'s /tf and '
                         '/tf_static ("" for the scan frame; default: tf.fixed_frame, odom, '
@@ -240,6 +252,16 @@ def build_parser() -> argparse.ArgumentParser:
                                  'the suffix)')
     r.add_argument('--quiet', action='store_true', help='no progress bar')
     r.set_defaults(func=cmd_replay)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog='extended-tracker',
+        description='Extended object tracking in 2D laser scans: replay bags, simulate '
+                    'scenes, evaluate against truth, measure speed.')
+    p.add_argument('--version', action='version', version=f'%(prog)s {__version__}')
+    sub = p.add_subparsers(dest='command', required=True)
+    _add_replay(sub)
     s = sub.add_parser('simulate', help='write a simulated scan bag with ground truth')
     s.add_argument('output', help='new ROS 2 bag folder (MCAP), truth.json inside it')
     s.add_argument('--scene', choices=SCENES, default='demo',
@@ -256,6 +278,9 @@ def build_parser() -> argparse.ArgumentParser:
     real.add_argument('--out', default=os.path.join('out', 'real'),
                       help='folder for the PNGs and the replayed bags (default: '
                            '%(default)s)')
+    real.add_argument('--mounts-dir', default=os.path.join('config', 'mounts'),
+                      help='folder of the mounts files of the two-scanner recordings '
+                           '(default: %(default)s)')
     real.add_argument('--config', help='one config for every bag (default: the defaults, '
                                        'leg_height for the bags recorded at leg height)')
     real.set_defaults(func=cmd_real)

@@ -243,6 +243,8 @@ class TimeConfig:
                         lo_open=True)
     default_dt: float = _f(0.1, 'dt of the first scan after a reset', 's', 0.0, 10.0,
                            lo_open=True)
+    latency: float = _f(0.05, 'several scanners: a scan waits this long for earlier-stamped '
+                        'ones', 's', 0.0, 2.0)
 
 
 @dataclass(frozen=True)

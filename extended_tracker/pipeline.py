@@ -148,6 +148,8 @@ class StepResult:
     age, since_detected : (k,) arrays
         Of each estimate: seconds since its id was first shown, and since returns last
         updated it (0 in a scan that updated it).
+    scanner : str or None
+        The frame of the scanner that took the scan (when placed in a fixed frame).
 
     """
 
@@ -165,6 +167,7 @@ class StepResult:
     pose: Pose2 | None = None
     age: np.ndarray | None = None
     since_detected: np.ndarray | None = None
+    scanner: str | None = None
 
     def __post_init__(self):
         # a result made by hand (a test, a tool) without the times: none known, 0
@@ -228,7 +231,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     return new_state, StepResult(scan_in.stamp_ns, scan_in.frame_id, estimates, card, mean,
                                  fg.points, fg.background_points, diag, event, error,
                                  time.perf_counter() - t0, pose,
-                                 *times.of(estimates, scan_in.stamp_ns))
+                                 *times.of(estimates, scan_in.stamp_ns),
+                                 state.scanner if pose is not None else None)
 
 
 @dataclass(frozen=True)
@@ -277,7 +281,7 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
         # tracks in another frame are not comparable: the previous estimates stand
         return _repeat(state, now, state.frame_id, 'foreign_frame',
                        f'frame {frame!r} is not the tracked frame {state.frame_id!r}', t0)
-    if now == state.last_stamp_ns:
+    if now == scanner_ns:                   # another scanner's scan may share the stamp
         return _repeat(state, now, frame, 'repeated_stamp',
                        'the same stamp as the previous scan: not used again', t0)
     dt, event, error = scan_period(state.last_stamp_ns, now, cfg)

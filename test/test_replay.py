@@ -258,15 +258,18 @@ def test_bundled_bag_replays():
     assert (s.distinct_ids, s.moving_ids) == (3, 3)
 
 
-def test_several_scan_topics_need_a_choice(tmp_path):
+def test_topics_of_one_frame_are_one_scanner(tmp_path):
+    """Two topics of one frame (a scanner published twice): one is tracked, the summary
+    says which; --scan-topic picks another, and one the bag lacks is refused."""
     write_ros2(tmp_path / 'in', topics=('/front_scan', '/rear_scan'), seconds=1.0)
-    with pytest.raises(BagError, match='several LaserScan topics.*/front_scan, /rear_scan'):
-        replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
-    assert not (tmp_path / 'out').exists()
-    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, scan_topic='rear_scan', progress=False)
-    assert s.topic == '/rear_scan' and s.scans == 10
+    s = replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
+    assert s.topic == '/front_scan' and s.scans == 10
+    assert s.notes == ["/front_scan, /rear_scan share the frame 'laser': one scanner, "
+                       '/front_scan taken (the most scans)']
+    s = replay(tmp_path / 'in', tmp_path / 'out2', CFG, scan_topic='rear_scan', progress=False)
+    assert s.topic == '/rear_scan' and s.scans == 10 and not s.notes
     with pytest.raises(BagError, match='choose one of'):
-        replay(tmp_path / 'in', tmp_path / 'out2', CFG, scan_topic='/nope', progress=False)
+        replay(tmp_path / 'in', tmp_path / 'out3', CFG, scan_topic='/nope', progress=False)
 
 
 def test_refuses_to_overwrite(tmp_path):
@@ -976,7 +979,8 @@ def test_the_plot_shows_the_field_of_view_of_the_first_readable_scan(tmp_path, m
     assert s.events == {'malformed_scan': 1}
     scan = sim_scans(0.1)[0]
     last = scan.angle_min + scan.angle_increment * (len(scan.ranges) - 1)
-    assert drawn['fov'] == pytest.approx((scan.angle_min, last, scan.range_max))
+    assert list(drawn['fov']) == ['']                     # one scanner, in its own frame
+    assert drawn['fov'][''] == pytest.approx((scan.angle_min, last, scan.range_max))
     assert last == pytest.approx(np.pi / 2)
 
 

@@ -81,3 +81,88 @@ def test_a_view_sees_its_sector_out_to_its_range():
     assert view.sees(pts).tolist() == [True, False, False, True]
     full = View(Pose2(), -math.pi, math.pi, 5.0, True)
     assert full.sees(pts).tolist() == [True, True, False, True]
+
+
+# --- bags of several scanners ---
+
+@pytest.fixture(scope='module')
+def two_bag(tmp_path_factory):
+    from extended_tracker.sim.bag import write_sim_bag
+
+    out = tmp_path_factory.mktemp('two') / 'two'
+    write_sim_bag(out, 'two_scanners', seed=8, duration=6.0)
+    return out
+
+
+def test_a_bag_of_two_scanners_is_replayed_as_one_tracker(two_bag, tmp_path):
+    """Both topics tracked in the frame the bag's /tf_static links them through; the
+    output holds both scan topics and one /tracks; the tracks are those of the
+    pipeline fed both scanners in stamp order."""
+    from rosbags.rosbag2 import Reader
+
+    from extended_tracker.bag.bagio import message_typestore
+    from extended_tracker.bag.replay import replay
+    from extended_tracker.config import TrackerConfig
+
+    s = replay(two_bag, tmp_path / 'out', TrackerConfig(), progress=False)
+    assert s.topic == '/front_laser/scan, /rear_laser/scan' and s.scans == 120
+    assert s.fixed_frame == 'base_link' and not s.events and s.distinct_ids == 3
+    store = message_typestore()
+    with Reader(tmp_path / 'out') as r:
+        topics = {c.topic for c in r.connections}
+        tracks = [store.deserialize_cdr(raw, c.msgtype)
+                  for c, _, raw in r.messages([c for c in r.connections
+                                               if c.topic == '/tracks'])]
+    assert {'/front_laser/scan', '/rear_laser/scan', '/tracks', '/tf_static'} <= topics
+    state, cfg = PipelineState.initial(TrackerConfig()), TrackerConfig()
+    for msg, (scan, _, place) in zip(tracks, two_scanner_scans(6.0, 8)):
+        state, res = step(state, scan, cfg, place=place)
+        got = np.array([[o.position.x, o.position.y] for o in msg.objects]).reshape(-1, 2)
+        assert msg.header.frame_id == 'base_link'
+        assert np.allclose(got, res.estimates.m[:, :2], atol=1e-6)
+
+
+def test_scanners_nothing_links_need_their_mounts(two_bag, tmp_path):
+    """Without the mounts in the bag: refused with what to do; with a mounts file: placed
+    on its base frame."""
+    import shutil
+
+    import yaml
+
+    from extended_tracker.bag.replay import replay
+    from extended_tracker.bag.scanners import load_mounts
+    from extended_tracker.config import TrackerConfig
+    from extended_tracker.errors import BagError
+    from extended_tracker.sim.two_scanners import MOUNTS
+
+    bare = tmp_path / 'bare'
+    _copy_without_transforms(two_bag, bare)
+    with pytest.raises(BagError, match='give their mounts .--mounts FILE. or one --scan-topic'):
+        replay(bare, tmp_path / 'out', TrackerConfig(), progress=False)
+    file = tmp_path / 'mounts.yaml'
+    file.write_text(yaml.safe_dump({'base_frame': 'robot', 'mounts': {
+        f: [p.x, p.y, p.yaw] for f, p in MOUNTS.items()}}))
+    s = replay(bare, tmp_path / 'out', TrackerConfig(), progress=False,
+               mounts=load_mounts(file))
+    assert s.fixed_frame == 'robot' and s.frame_why == 'the mounts place the scanners on it'
+    assert s.distinct_ids == 3 and not s.events
+    for text, why in (('base_frame: robot\n', 'KeyError'), ('[1, 2]\n', 'TypeError'),
+                      ('base_frame: ""\nmounts: {a: [0, 0, 0]}\n', 'must name a frame'),
+                      ('base_frame: r\nmounts: {a: [0, x, 0]}\n', 'ValueError')):
+        file.write_text(text)
+        with pytest.raises(BagError, match=why):
+            load_mounts(file)
+    shutil.rmtree(tmp_path / 'out')
+
+
+def _copy_without_transforms(src, dst):
+    """The bag ``src`` without its /tf_static, at ``dst``."""
+    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+
+    with Reader(src) as r, Writer(dst, version=9, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {c.id: w.add_connection(c.topic, c.msgtype, msgdef=c.msgdef.data,
+                                        rihs01=c.digest)
+                 for c in r.connections if c.topic != '/tf_static'}
+        for c, t, raw in r.messages():
+            if c.id in conns:
+                w.write(conns[c.id], t, raw)

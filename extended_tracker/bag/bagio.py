@@ -175,21 +175,23 @@ def _open_reader(p: Path):
     return reader
 
 
-def open_scans(path, scan_topic: str | None = None):
+def open_scans(path, scan_topic=None):
     """
     Open a bag (ROS 2 folder in sqlite3 or MCAP, whatever its name, or a ROS 1 ``.bag``)
     for its LaserScans.
 
+    ``scan_topic`` is a topic, a list of them, or None for every LaserScan topic.
+
     Returns
     -------
     reader : rosbags AnyReader (open; close it)
-    connections : the connections of the chosen LaserScan topic
+    connections : the connections of the chosen LaserScan topics
 
     Raises
     ------
     BagError
-        Missing or unreadable bag, no LaserScan topic, an unknown ``scan_topic``, or several
-        LaserScan topics and none chosen (the message lists them).
+        Missing or unreadable bag, no LaserScan topic, or an unknown ``scan_topic`` (the
+        message lists the bag's).
 
     """
     p = Path(path)
@@ -216,21 +218,19 @@ def open_scans(path, scan_topic: str | None = None):
         others = sorted({f'{c.topic} ({c.msgtype})' for c in reader.connections})
         reader.close()
         raise BagError(f'no sensor_msgs/LaserScan topic in {p}; it has: {", ".join(others)}')
+    chosen = topics
     if scan_topic is not None:
-        want = {scan_topic, '/' + scan_topic.lstrip('/'), scan_topic.lstrip('/')}
-        chosen = [t for t in topics if t in want]
-        if not chosen:
-            reader.close()
-            raise BagError(f'--scan-topic {scan_topic!r} is not a LaserScan topic of {p}; '
-                           f'choose one of: {", ".join(topics)}')
-        topic = chosen[0]
-    elif len(topics) > 1:
-        reader.close()
-        raise BagError(f'{p} has several LaserScan topics; choose one with --scan-topic: '
-                       f'{", ".join(topics)}')
-    else:
-        topic = topics[0]
-    return reader, [c for c in scans if c.topic == topic]
+        asked = [scan_topic] if isinstance(scan_topic, str) else list(scan_topic)
+        chosen = []
+        for name in asked:
+            want = {name, '/' + name.lstrip('/'), name.lstrip('/')}
+            found = [t for t in topics if t in want]
+            if not found:
+                reader.close()
+                raise BagError(f'--scan-topic {name!r} is not a LaserScan topic of {p}; '
+                               f'choose one of: {", ".join(topics)}')
+            chosen.append(found[0])
+    return reader, [c for c in scans if c.topic in chosen]
 
 
 STAGE_MARK = '.partial-'

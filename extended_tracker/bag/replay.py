@@ -32,7 +32,8 @@ from .bagio import (
     build_message, check_output, MARKERS_TYPE, message_typestore, open_scans, remove_stale_stages,
     scan_data, SCAN_TYPE, staged_bag, TRACKS_TYPE,
 )
-from .transforms import feed, is_static, linked, links, tf_connections, tf_data, TF_TYPE
+from .scanners import choose_frame, Mounts, one_per_scanner
+from .transforms import feed, is_static, tf_connections, tf_data, TF_TYPE
 
 SCAN_TOPIC = '/scan'
 TRACKS_TOPIC = '/tracks'
@@ -60,6 +61,7 @@ class ReplaySummary:
     plot: str = ''
     fixed_frame: str = ''               # '' : the scan frame
     frame_why: str = ''
+    notes: list = field(default_factory=list)   # topics that share a frame
 
     def lines(self) -> list[str]:
         per_scan = self.valid_detections / max(self.scans, 1)
@@ -67,6 +69,7 @@ class ReplaySummary:
         return [
             f'scans            {self.scans} (topic {self.topic})',
             f'tracked in       {self.fixed_frame or "the scan frame"} ({self.frame_why})',
+        ] + [f'scanners         {note}' for note in self.notes] + [
             f'valid detections {self.valid_detections} ({per_scan:.1f} per scan)',
             f'distinct ids     {self.distinct_ids} ({self.moving_ids} moved more than 1 m)',
             f'objects per scan mean {self.mean_count:.2f}, max {self.max_count}',
@@ -110,9 +113,9 @@ def ros2_frame_id(frame_id: str) -> str:
     return name if name else frame_id
 
 
-def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None,
+def replay_results(input_path, cfg: TrackerConfig, scan_topic=None,
                    renamed_frames: dict | None = None, fixed_frame: str = '',
-                   transforms: list | None = None):
+                   transforms: list | None = None, mounts: Mounts = Mounts()):
     """
     Yield ``(scan_message, StepResult)`` for every LaserScan of a bag, in time order.
 
@@ -124,12 +127,17 @@ def replay_results(input_path, cfg: TrackerConfig, scan_topic: str | None = None
     ``/tf_static`` are read with the scans, and each scan is placed in the fixed frame at
     its stamp (:class:`frames.placing.ScanPlacer`, waiting ``tf.timeout`` of record time
     for its transform); ``transforms``, when given, collects ``(topic, record_ns, msg)``
-    of every transform message read, for the output bag.
+    of every transform message read, for the output bag. Every scanner's scans are
+    tracked (one topic of those that share a frame), placed by the bag's transforms and
+    the ``mounts``.
     """
     reader, conns = open_scans(input_path, scan_topic)
+    conns = one_per_scanner(reader, conns)[0]
     tf_conns = tf_connections(reader) if fixed_frame else []
     buffer = TransformBuffer(cache_ns=None)
-    placer = ScanPlacer(buffer.lookup, fixed_frame, cfg.tf.timeout, cfg.tf.max_tilt)
+    mounts.add_to(buffer)
+    placer = ScanPlacer(buffer.lookup, fixed_frame, cfg.tf.timeout, cfg.tf.max_tilt,
+                        cfg.timing.latency, cfg.timing.max_gap)
     try:
         state = PipelineState.initial(cfg)
         for conn, record_ns, raw in reader.messages(connections=conns + tf_conns):
@@ -195,43 +203,34 @@ def _stamp_or(scan, record_ns: int) -> int:
     return stamp or record_ns
 
 
-def choose_fixed_frame(input_path, scan_topic: str | None, cfg: TrackerConfig,
-                       asked: str | None = None) -> tuple[str, str]:
+def choose_fixed_frame(input_path, scan_topic, cfg: TrackerConfig, asked: str | None = None,
+                       mounts: Mounts = Mounts()):
     """
-    ``(frame, why)``: the frame a replay tracks in. ``asked`` (``--fixed-frame``) when
-    given ('' for the scan frame); else ``tf.fixed_frame`` when the bag's transforms link
-    the scan frame to it, else the scan frame ('').
+    ``(frame, why, topics, notes)``: the frame a replay tracks in and why
+    (:func:`scanners.choose_frame`), the scan topics tracked (``{topic: frame}``, one per
+    scanner) and what was said of topics that share a frame.
     """
     reader, conns = open_scans(input_path, scan_topic)
     try:
-        tf_conns = tf_connections(reader)
-        tree = links(reader, tf_conns) if tf_conns else {}
-        frame = ''
-        for conn, _, raw in reader.messages(connections=conns):
-            frame = ros2_frame_id(_decode(reader, raw, conn).header.frame_id)
-            break
+        conns, topics, notes = one_per_scanner(reader, conns)
+        frame, why = choose_frame(reader, sorted(set(topics.values())), cfg, mounts, asked)
     finally:
         reader.close()
-    if asked is not None:
-        return asked, 'as asked'
-    want = cfg.tf.fixed_frame
-    if want and linked(tree, frame, want):
-        return want, f'the bag links {frame!r} to it'
-    if not want:
-        return '', 'tf.fixed_frame is empty'
-    return '', ('the bag has no transforms' if not tf_conns else
-                f'the bag\'s transforms do not link {frame!r} to {want!r}')
+    return frame, why, topics, notes
 
 
-def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None = None,
-           plot_path=None, progress: bool = True,
-           fixed_frame: str | None = None) -> ReplaySummary:
+def replay(input_path, output_path, cfg: TrackerConfig, scan_topic=None, plot_path=None,
+           progress: bool = True, fixed_frame: str | None = None,
+           mounts: Mounts = Mounts()) -> ReplaySummary:
     """
     Replay a bag into a new MCAP bag; optionally draw the run.
 
-    ``fixed_frame`` is the frame to track in ('' for the scan frame); by default
-    ``tf.fixed_frame`` where the bag's transforms link the scan frame to it, else the
-    scan frame (:func:`choose_fixed_frame`; the summary says which and why).
+    Every scanner is tracked (``scan_topic``: one topic or a list; by default every
+    LaserScan topic, one of those that share a frame). ``fixed_frame`` is the frame to
+    track in ('' for the scan frame); by default ``tf.fixed_frame`` where the bag's
+    transforms (and the ``mounts``) link the scanners to it, else for several scanners
+    the frame that links them, else the scan frame (:func:`choose_fixed_frame`; the
+    summary says which and why).
 
     Raises
     ------
@@ -249,14 +248,16 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
         from ..report.imagefile import image_path
 
         plot_path = image_path(plot_path)
-    reader, conns = open_scans(input_path, scan_topic)
+    frame, why, topics, notes = choose_fixed_frame(input_path, scan_topic, cfg, fixed_frame,
+                                                   mounts)
+    reader, conns = open_scans(input_path, list(topics))
     total = sum(c.msgcount for c in conns)
-    topic = conns[0].topic
     reader.close()
+    topic = ', '.join(sorted(topics))
     if total == 0:
         raise BagError(f'{topic} in {input_path} holds no scans: nothing to replay')
-    frame, why = choose_fixed_frame(input_path, scan_topic, cfg, fixed_frame)
     summary = ReplaySummary(topic=topic, output=str(out), fixed_frame=frame, frame_why=why,
+                            notes=notes,
                             removed_stages=[str(p) for p in remove_stale_stages(out)])
     tally = _Tally()
     sketch = None
@@ -267,9 +268,10 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
     bar = _Progress(total) if progress else None
     try:
         transforms: list = []
-        results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames, frame,
-                                 transforms)
-        fov = _write_bag(out, results, cfg, tally, sketch, bar, transforms)
+        results = replay_results(input_path, cfg, list(topics), summary.renamed_frames, frame,
+                                 transforms, mounts)
+        fov = _write_bag(out, results, cfg, tally, sketch, bar, transforms,
+                         {f: t for t, f in topics.items()} if len(topics) > 1 else {})
     finally:
         if bar:
             bar.close()
@@ -284,29 +286,33 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic: str | None =
 
 
 def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, bar,
-               transforms: list):
+               transforms: list, topic_of: dict):
     """Write every scan and its tracks and markers into the MCAP bag ``out`` (staged, moved
     into place when complete), with the transform messages ``results`` put in
-    ``transforms`` as it read them; count them in ``tally``. Returns the first good
-    scan's field of view."""
+    ``transforms`` as it read them; count them in ``tally``. Each scanner's scans go on
+    its topic of ``topic_of`` (by frame; ``/scan`` for a scanner not in it). Returns each
+    scanner's field of view (by frame; '' in the scan frame)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     store = message_typestore()
     prev_ids: set = set()
-    fov = None
+    fov: dict = {}
     with staged_bag(out) as tmp, Writer(tmp, version=9,
                                         storage_plugin=StoragePlugin.MCAP) as writer:
-        c_scan = writer.add_connection(SCAN_TOPIC, SCAN_TYPE, typestore=store)
+        c_scans = {t: writer.add_connection(t, SCAN_TYPE, typestore=store)
+                   for t in sorted(set(topic_of.values()) or {SCAN_TOPIC})}
         c_tracks = writer.add_connection(TRACKS_TOPIC, TRACKS_TYPE, typestore=store)
         c_markers = writer.add_connection(MARKERS_TOPIC, MARKERS_TYPE, typestore=store)
         c_tf = {}
         for k, (scan, res) in enumerate(results):
             _write_transforms(writer, store, c_tf, transforms)
-            if fov is None and res.event != 'malformed_scan':
-                fov = scan_fov(scan)
+            if res.event != 'malformed_scan' and (res.scanner or '') not in fov:
+                fov[res.scanner or ''] = scan_fov(scan)
             tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
             mdata, prev_ids = markers_data(res, cfg, prev_ids)
             markers = build_message(store, MARKERS_TYPE, mdata)
+            c_scan = c_scans[topic_of.get(getattr(scan.header, 'frame_id', ''), SCAN_TOPIC)] \
+                if topic_of else c_scans[SCAN_TOPIC]
             writer.write(c_scan, res.stamp_ns, store.serialize_cdr(
                 build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
             writer.write(c_tracks, res.stamp_ns, store.serialize_cdr(tracks, TRACKS_TYPE))

@@ -53,7 +53,7 @@ def score_recording(bag, truth_csv, cfg: TrackerConfig | None = None):
     in its fixed frame (``tf.fixed_frame``) and scored against the truth."""
     cfg = cfg or TrackerConfig()
     truth = read_truth(truth_csv)
-    frame, _ = choose_fixed_frame(bag, None, cfg)
+    frame = choose_fixed_frame(bag, None, cfg)[0]
     scores: dict[str, TargetScore] = {}
     unmatched, scans = 0, 0
     for _, res in replay_results(bag, cfg, None, None, frame):

@@ -16,12 +16,16 @@ latest pose. Each outcome is a :class:`Placed`:
   (``transform_missing``). When a link appears after tracking in the scan frame, the
   tracks move to the fixed frame (event ``fixed_frame_found``: the caller restarts them).
 
-Scans leave in the order they came.
+Scans leave in the order of their stamps. Once several scanners feed the queue, each
+scan is held ``timing.latency`` after it arrived, so that one that arrives a little
+late is put in its place; one older than a scan already left (by at most
+``timing.max_gap``: more is a clock that jumped, the pipeline's to handle) is dropped
+(``scan_out_of_order``).
 """
 
 from __future__ import annotations
 
-from collections import deque
+from bisect import insort
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -29,7 +33,7 @@ from .buffer import ConnectivityError, ExtrapolationError, planar, TiltError, Tr
 from .pose import Placement
 
 #: events of the scans the queue drops
-PLACING_EVENTS = ('transform_late', 'transform_missing', 'tilted_scanner')
+PLACING_EVENTS = ('transform_late', 'transform_missing', 'tilted_scanner', 'scan_out_of_order')
 #: what the queue says once of the frame the tracks are kept in (no event of a scan)
 NOTICES = ('no_fixed_frame', 'fixed_frame_found')
 
@@ -56,28 +60,51 @@ class ScanPlacer:
     """
 
     def __init__(self, lookup: Callable[[str, str, int], Transform], fixed_frame: str,
-                 timeout: float, max_tilt: float):
+                 timeout: float, max_tilt: float, latency: float = 0.0,
+                 max_gap: float = 2.0):
         self.lookup, self.fixed_frame = lookup, fixed_frame
         self.timeout_ns, self.max_tilt = int(timeout * 1e9), max_tilt
-        self.waiting: deque = deque()
+        self.latency_ns, self.max_gap_ns = int(latency * 1e9), int(max_gap * 1e9)
+        self.waiting: list = []       # (stamp, order, scan, frame, arrival) by stamp
+        self.pushed = 0
+        self.frames: set = set()      # the scanners placed in the fixed frame
+        self.last_ns: int | None = None   # the stamp of the last scan to leave
         self.linked = False           # a scan has been placed in the fixed frame
         self.own_frame = False        # tracking in the scan frame (no link found)
 
     def push(self, scan, stamp_ns: int, frame: str, arrival_ns: int) -> None:
-        self.waiting.append((scan, stamp_ns, frame, arrival_ns))
+        insort(self.waiting, (stamp_ns, self.pushed, scan, frame, arrival_ns),
+               key=lambda w: w[:2])
+        self.pushed += 1
 
     def ready(self, now_ns: int) -> list[Placed]:
-        """The scans that can leave at ``now_ns``, in order."""
+        """The scans that can leave at ``now_ns``, in the order of their stamps."""
         out = []
+        hold = self.latency_ns if len(self.frames) > 1 else 0
         while self.waiting:
-            scan, stamp_ns, frame, arrival_ns = self.waiting[0]
-            placed = self._try(scan, stamp_ns, frame, arrival_ns,
-                               now_ns - arrival_ns >= self.timeout_ns)
+            stamp_ns, _, scan, frame, arrival_ns = self.waiting[0]
+            if now_ns - arrival_ns < hold:
+                break
+            placed = self._late(scan, stamp_ns, arrival_ns) or self._try(
+                scan, stamp_ns, frame, arrival_ns, now_ns - arrival_ns >= self.timeout_ns)
             if placed is None:
                 break
-            self.waiting.popleft()
+            self.waiting.pop(0)
+            if not placed.dropped:
+                self.last_ns = stamp_ns
             out.append(placed)
         return out
+
+    def _late(self, scan, stamp_ns: int, arrival_ns: int) -> Placed | None:
+        """The drop of a scan older than one that already left (within ``max_gap``), once
+        several scanners feed the queue (one scanner's step back is the pipeline's
+        ``time_backwards``)."""
+        if (len(self.frames) < 2 or self.last_ns is None
+                or not 0 < self.last_ns - stamp_ns <= self.max_gap_ns):
+            return None
+        return Placed(scan, arrival_ns, None, True, 'scan_out_of_order',
+                      f'stamped {(self.last_ns - stamp_ns) * 1e-9:.3f} s before a scan already '
+                      f'tracked: it came more than timing.latency late; not tracked')
 
     def flush(self) -> list[Placed]:
         """Every scan still waiting, as if its wait were over (the end of a bag)."""
@@ -100,6 +127,7 @@ class ScanPlacer:
             return self._unlinked(scan, frame, arrival_ns, waited, err)
         found = self.own_frame
         self.linked, self.own_frame = True, False
+        self.frames.add(frame)
         place = Placement(self.fixed_frame, pose)
         if found:
             return Placed(scan, arrival_ns, place, False, 'fixed_frame_found',

@@ -43,10 +43,10 @@ def _sensor(ax, angle_lo, angle_hi, range_max, pose=(0.0, 0.0, 0.0)):
     ax.plot([x], [y], marker='^', color='k', ms=8, zorder=5)
 
 
-def _path(ax, path: np.ndarray) -> None:
-    """The scanner's path in the fixed frame."""
-    ax.plot(path[:, 0], path[:, 1], '-', color='k', lw=1.0, alpha=0.7, label='sensor path',
-            zorder=4)
+def _path(ax, path: np.ndarray, label: bool = True) -> None:
+    """A scanner's path in the fixed frame."""
+    ax.plot(path[:, 0], path[:, 1], '-', color='k', lw=1.0, alpha=0.7,
+            label='sensor path' if label else None, zorder=4)
 
 
 class RunSketch:
@@ -71,7 +71,7 @@ class RunSketch:
         self.stride = 1
         self.clouds: list = []           # (scan index, detections, background returns)
         self._kept = 0
-        self.path = array('d')           # the scanner's x, y, yaw in the fixed frame
+        self.paths: dict = {}            # scanner -> its x, y, yaw in the fixed frame
 
     def add(self, result) -> None:
         """Take one :class:`StepResult`."""
@@ -90,7 +90,8 @@ class RunSketch:
         k, self.scans = self.scans, self.scans + 1
         pose = getattr(result, 'pose', None)
         if pose is not None:
-            self.path.extend((pose.x, pose.y, pose.yaw))
+            key = getattr(result, 'scanner', None) or ''
+            self.paths.setdefault(key, array('d')).extend((pose.x, pose.y, pose.yaw))
         pts, bg = result.points, result.background_points
         if k % self.stride or not (len(pts) or len(bg)):
             return
@@ -123,8 +124,8 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
     ----------
     results : list of StepResult, or a RunSketch of them
     path : str or Path
-    fov : (angle_lo, angle_hi, range_max), optional
-        Field of view to shade.
+    fov : (angle_lo, angle_hi, range_max), or {scanner frame: that}, optional
+        Field of view to shade (of each scanner, at its last pose).
     is_rectangle : callable, optional
         ``is_rectangle(estimates) -> bool array``: which outlines to draw as boxes. Unused
         when ``results`` is a RunSketch, which applied its own while gathering.
@@ -144,14 +145,18 @@ def plot_run(results, path, title='', fov=None, is_rectangle=None, max_points=20
             sketch.add(r)
     pts, bg = sketch.points(), sketch.background()
     tracks = {lab: sketch.track(lab) for lab in sorted(sketch.tracks)}
-    poses = np.array(sketch.path).reshape(-1, 3)
-    limits = plot_limits(pts + [seq[:, :2] for seq in tracks.values()] + [poses[:, :2]],
-                         origin=poses[-1, :2] if len(poses) else np.zeros(2))
+    paths = {k: np.array(v).reshape(-1, 3) for k, v in sketch.paths.items()}
+    origin = next(iter(paths.values()))[-1, :2] if paths else np.zeros(2)
+    limits = plot_limits(pts + [seq[:, :2] for seq in tracks.values()]
+                         + [p[:, :2] for p in paths.values()], origin=origin)
     fig, ax = plt.subplots(figsize=figure_size(limits), dpi=110)
-    if fov is not None:
-        _sensor(ax, *fov, pose=tuple(poses[-1]) if len(poses) else (0.0, 0.0, 0.0))
-    if len(poses):
-        _path(ax, poses)
+    fovs = fov if isinstance(fov, dict) else {k: fov for k in paths or ['']}
+    for key, view in fovs.items():
+        if view is not None:
+            last = paths[key][-1] if key in paths else (0.0, 0.0, 0.0)
+            _sensor(ax, *view, pose=tuple(last))
+    for k, poses in enumerate(paths.values()):
+        _path(ax, poses, label=k == 0)
     if bg:
         b = np.vstack(bg)
         step = max(1, len(b) // max_points)

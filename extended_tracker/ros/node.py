@@ -108,7 +108,8 @@ class TrackerNode(Node):
         if not tf.fixed_frame:
             return None, None
         source = TransformSource(self)
-        placer = ScanPlacer(source.lookup, tf.fixed_frame, tf.timeout, tf.max_tilt)
+        placer = ScanPlacer(source.lookup, tf.fixed_frame, tf.timeout, tf.max_tilt,
+                            self.cfg.timing.latency, self.cfg.timing.max_gap)
         self.drain_timer = self.create_timer(DRAIN_PERIOD_S, self.drain)
         self.frame_note = f'{tf.fixed_frame} (transforms from {source.kind})'
         self.get_logger().info(f'tracking in {tf.fixed_frame} where the transforms link the '

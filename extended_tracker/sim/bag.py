@@ -14,6 +14,7 @@ from ..bag.bagio import build_message, message_typestore, scan_data, SCAN_TYPE, 
 from ..bag.transforms import TF_TYPE
 from ..errors import BagError
 from .drive import corridor_drive_scene
+from .two_scanners import two_scanner_scans, two_scanner_scenes
 
 SCENE_OF = {
     'tutorial': laser.tutorial_scene,
@@ -22,6 +23,7 @@ SCENE_OF = {
     'walls': laser.walls_scene,
     'demo': laser.demo_scene,
     'corridor_drive': corridor_drive_scene,
+    'two_scanners': two_scanner_scenes,
 }
 
 # the truth is held in memory until it is written at the end: an hour (36 000 scans at
@@ -64,6 +66,8 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     digest = hashlib.sha256()
     # written in a staging folder and moved into place with its truth: an interrupted
     # run leaves nothing at OUTPUT
+    if isinstance(sim_scene, list):                 # one scene per scanner
+        return _write_scanners(out, scene, sim_scene, seed, duration)
     with staged_bag(out) as tmp:
         with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
             conn = writer.add_connection(topic, SCAN_TYPE, typestore=store)
@@ -96,6 +100,58 @@ def write_sim_bag(output, scene: str, seed: int, duration: float, topic: str = '
     return info
 
 
+def _write_scanners(out: Path, name: str, scenes: list, seed: int, duration: float) -> dict:
+    """
+    A bag of several scanners, each on ``/<frame>/scan``, their mounts on the base frame
+    (the fixed frame of their drive) in ``/tf_static``, and ``truth.json`` of every scan
+    (no region: the scanners cover the whole scene together).
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    store = message_typestore()
+    truth = []
+    with staged_bag(out) as tmp:
+        with Writer(tmp, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            conns = {s.laser.frame_id: writer.add_connection(
+                f'/{s.laser.frame_id}/scan', SCAN_TYPE, typestore=store) for s in scenes}
+            static = writer.add_connection('/tf_static', TF_TYPE, typestore=store)
+            for scan, objs, place in two_scanner_scans(duration, seed, scenes):
+                stopping.check()
+                stamp = scan.header.stamp.sec * 1_000_000_000 + scan.header.stamp.nanosec
+                if not truth:
+                    for s in scenes:
+                        _put_transform(writer, store, static, stamp, s.drive.fixed_frame,
+                                       s.laser.frame_id, s.drive.mount)
+                msg = build_message(store, SCAN_TYPE, scan_data(scan))
+                writer.write(conns[scan.header.frame_id], stamp,
+                             store.serialize_cdr(msg, SCAN_TYPE))
+                truth.append({'stamp_ns': stamp, 'objects': [
+                    {'id': o.id, 'kind': o.kind, 'centre': o.centre.tolist(),
+                     'velocity': o.velocity.tolist(), 'extent': o.extent.tolist(),
+                     'visible_beams': o.visible_beams} for o in objs]})
+        info = {'scene': name, 'seed': seed, 'duration_s': duration, 'scans': len(truth),
+                'topic': ', '.join(sorted(c.topic for c in conns.values())), 'bag': str(out),
+                'truth': str(out / 'truth.json'),
+                'fixed_frame': scenes[0].drive.fixed_frame}
+        (tmp / 'truth.json').write_text(json.dumps({'info': info, 'scans': truth}))
+    return info
+
+
+def _put_transform(writer, store, conn, ns: int, parent: str, child: str, pose) -> None:
+    """One planar transform ``parent -> child`` at ``ns`` on ``conn``."""
+    import math
+
+    sec, nsec = divmod(ns, 1_000_000_000)
+    data = {'transforms': [{
+        'header': {'stamp': {'sec': sec, 'nanosec': nsec}, 'frame_id': parent},
+        'child_frame_id': child,
+        'transform': {'translation': {'x': pose.x, 'y': pose.y, 'z': 0.0},
+                      'rotation': {'x': 0.0, 'y': 0.0, 'z': math.sin(pose.yaw / 2),
+                                   'w': math.cos(pose.yaw / 2)}}}]}
+    msg = build_message(store, TF_TYPE, data)
+    writer.write(conn, ns, store.serialize_cdr(msg, TF_TYPE))
+
+
 class _TransformWriter:
     """The ``/tf`` (fixed -> base at every half scan period, the base's pose at that time)
     and ``/tf_static`` (base -> scanner, once) of a scene with a drive."""
@@ -120,14 +176,4 @@ class _TransformWriter:
             self._put(self.tf, ns, d.fixed_frame, d.base_frame, d.base_pose(t + dt))
 
     def _put(self, conn, ns: int, parent: str, child: str, pose) -> None:
-        import math
-
-        sec, nsec = divmod(ns, 1_000_000_000)
-        data = {'transforms': [{
-            'header': {'stamp': {'sec': sec, 'nanosec': nsec}, 'frame_id': parent},
-            'child_frame_id': child,
-            'transform': {'translation': {'x': pose.x, 'y': pose.y, 'z': 0.0},
-                          'rotation': {'x': 0.0, 'y': 0.0, 'z': math.sin(pose.yaw / 2),
-                                       'w': math.cos(pose.yaw / 2)}}}]}
-        msg = build_message(self.store, TF_TYPE, data)
-        self.writer.write(conn, ns, self.store.serialize_cdr(msg, TF_TYPE))
+        _put_transform(self.writer, self.store, conn, ns, parent, child, pose)
