@@ -166,3 +166,46 @@ def _copy_without_transforms(src, dst):
         for c, t, raw in r.messages():
             if c.id in conns:
                 w.write(conns[c.id], t, raw)
+
+
+def test_the_node_tracks_two_scan_topics_as_one():
+    """scan_topics with the two corner scanners, their mounts on /tf_static, the fixed
+    frame base_link: one tracks stream, the pipeline's on the merged scans."""
+    from sensor_msgs.msg import LaserScan
+
+    from extended_tracker.ros.testing import laser_scan, NodeHarness
+    from extended_tracker.sim.two_scanners import MOUNTS
+
+    params = {'scan_topics': ['front/scan', 'rear/scan'], 'tf.fixed_frame': 'base_link',
+              'model.clutter_density': 'beam'}
+    with NodeHarness(params) as h:
+        pubs = {f: h.probe.create_publisher(LaserScan, f'{f.split("_")[0]}/scan',
+                                            qos_profile_sensor_data()) for f in MOUNTS}
+        h.spin_until(lambda: all(p.get_subscription_count() for p in pubs.values()))
+        for frame, m in MOUNTS.items():
+            h.send_transform('base_link', frame, m.x, m.y, m.yaw, static=True)
+        state = PipelineState.initial(CFG)
+        for scan, _, place in two_scanner_scans(3.0, 8):
+            n = len(h.tracks)
+            pubs[scan.header.frame_id].publish(laser_scan(scan))
+            assert h.spin_until(lambda: len(h.tracks) > n)
+            state, res = step(state, scan, CFG, place=place)
+            reply = h.tracks[-1]
+            got = np.array([[o.position.x, o.position.y] for o in reply.objects])
+            assert reply.header.frame_id == 'base_link'
+            assert np.allclose(got.reshape(-1, 2), res.estimates.m[:, :2], atol=1e-6)
+        assert h.node.counts == {} and len(reply.objects) >= 2
+
+
+def qos_profile_sensor_data():
+    from rclpy.qos import qos_profile_sensor_data as profile
+
+    return profile
+
+
+def test_scan_topics_must_name_topics():
+    from extended_tracker.errors import ConfigError
+    from extended_tracker.ros.testing import NodeHarness
+
+    with pytest.raises(ConfigError, match='scan_topics must name at least one topic'):
+        NodeHarness({'scan_topics': ['']})

@@ -17,7 +17,6 @@ calls.
 
 from __future__ import annotations
 
-import difflib
 import math
 import sys
 import threading
@@ -25,7 +24,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from extended_tracker_msgs.msg import ExtendedObjectArray
-from rcl_interfaces.msg import SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -50,7 +49,7 @@ from ..report.messages import markers_data, tracks_data
 from .convert import fill
 from .entry import take_signals
 from .events import EventLog, ScanGaps
-from .parameters import parameter_descriptors, range_error, type_error
+from .parameters import parameter_descriptors, range_error, type_error, unknown_overrides
 from .transforms import TransformSource
 
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
@@ -68,7 +67,7 @@ SUMMARY_PERIOD_S = 10.0
 #: how often the queue of scans waiting for their transform is looked at, s
 DRAIN_PERIOD_S = 0.02
 class TrackerNode(Node):
-    """Extended object tracker on one LaserScan topic."""
+    """Extended object tracker on the LaserScan topics of one or more scanners."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_NAME, **kwargs)
@@ -78,7 +77,7 @@ class TrackerNode(Node):
         self.state = PipelineState.initial(self.cfg)
         self.marker_ids: set = set()
         self.events = EventLog()
-        self.gaps = ScanGaps()
+        self.gaps: dict = {}                      # scanner frame -> its ScanGaps
         self.counts = self.events.counts          # event -> count (the diagnostics' count_*)
         self.unknown_parameters = self._check_overrides()
         self.scans = 0
@@ -88,14 +87,17 @@ class TrackerNode(Node):
         self.pub_tracks = self.create_publisher(ExtendedObjectArray, 'tracks', reliable)
         self.pub_markers = self.create_publisher(MarkerArray, 'tracks/markers', reliable)
         self.pub_diag = self.create_publisher(DiagnosticArray, 'tracks/diagnostics', reliable)
-        self.sub = self.create_subscription(LaserScan, 'scan', self.on_scan,
-                                            qos_profile_sensor_data)
+        self.subs = [self.create_subscription(LaserScan, topic, self.on_scan,
+                                              qos_profile_sensor_data)
+                     for topic in self.get_parameter('scan_topics').value]
+        self.sub = self.subs[0]
         self.srv_reset = self.create_service(Trigger, '~/reset', self._on_reset)
         # on the steady clock: the summary comes on time whatever the ROS clock does
         self.summary_timer = self.create_timer(
             SUMMARY_PERIOD_S, self.log_summary, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
-            f'tracking {self.sub.topic_name} in {self.cfg.model.mode} mode, p_D '
+            f'tracking {", ".join(s.topic_name for s in self.subs)} in '
+            f'{self.cfg.model.mode} mode, p_D '
             f'{self.cfg.detection.model}, clutter density {self.cfg.model.clutter_density}, '
             f'background {"on" if self.cfg.background.enabled else "off"}')
         self.frame_note = 'the scan frame (tf.fixed_frame is empty)'
@@ -120,12 +122,15 @@ class TrackerNode(Node):
     # --- parameters ---
     def _declare_parameters(self) -> None:
         """
-        Declare every configuration field with its descriptor. A value the descriptor
-        refuses (a wrong type, or out of range, from a parameter file or ``-p``) is a
-        ConfigError in one line with the fix, not rclpy's traceback. An array given no
-        value is set to the empty array, so that GetParameters answers for it: rclpy's
-        service answers nothing at all when one name asked for is uninitialised.
+        Declare ``scan_topics`` (the node's own: the LaserScan topics of the scanners to
+        track, ``[scan]`` by default, so that ``-r scan:=...`` keeps working) and every
+        configuration field with its descriptor. A value the descriptor refuses (a wrong
+        type, or out of range, from a parameter file or ``-p``) is a ConfigError in one
+        line with the fix, not rclpy's traceback. An array given no value is set to the
+        empty array, so that GetParameters answers for it: rclpy's service answers
+        nothing at all when one name asked for is uninitialised.
         """
+        self._declare_scan_topics()
         for name, (default, desc) in parameter_descriptors().items():
             try:
                 if isinstance(default, list):
@@ -139,6 +144,18 @@ class TrackerNode(Node):
                 raise ConfigError(type_error(name, desc.type, err)) from err
             except InvalidParameterValueException as err:
                 raise ConfigError(range_error(name, desc, self._given(name))) from err
+
+    def _declare_scan_topics(self) -> None:
+        desc = ParameterDescriptor(
+            name='scan_topics', type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
+            description='LaserScan topics of the scanners to track, all in one tracker in '
+                        'tf.fixed_frame (placed there by TF)')
+        try:
+            topics = self.declare_parameter('scan_topics', ['scan'], desc).value
+        except (InvalidParameterTypeException, InvalidParameterValueException) as err:
+            raise ConfigError(f'scan_topics must be a list of topic names; {err}') from err
+        if not topics or not all(isinstance(t, str) and t for t in topics):
+            raise ConfigError(f'scan_topics must name at least one topic, got {topics!r}')
 
     def _given(self, name: str):
         """The value given for ``name`` (a parameter file, ``-p``), or None."""
@@ -157,23 +174,10 @@ class TrackerNode(Node):
         return from_flat(flat)           # raises ConfigError with the reason
 
     def _check_overrides(self) -> list:
-        """
-        Names given to the node (a parameter file, ``-p``, overrides) that it does not
-        have, said once at start-up with the nearest known name: rclpy ignores them, so a
-        misspelt parameter would otherwise leave its default in force without a word.
-        (The offline tools refuse an unknown key outright; a parameter file's ``/**``
-        section may hold other nodes' parameters, so the node runs on.)
-        """
-        # rclpy keeps what it was given in Node._parameter_overrides (Jazzy has no public
-        # accessor); a release without it makes this check say nothing, not fail
-        unknown = sorted(name for name in getattr(self, '_parameter_overrides', {})
-                         if not self.has_parameter(name))
+        """Names given to the node that it does not have, said once at start-up with the
+        nearest known name (:func:`parameters.unknown_overrides`)."""
+        unknown, said = unknown_overrides(self)
         if unknown:
-            known = list(to_flat(TrackerConfig()))
-            said = []
-            for name in unknown:
-                near = difflib.get_close_matches(name, known, n=1)
-                said.append(f'{name} (did you mean {near[0]}?)' if near else name)
             self.counts['unknown_parameter'] = 1                  # in the diagnostics
             self.get_logger().warning(f'{len(unknown)} given parameter(s) this node does not '
                                       f'have, ignored: {", ".join(said)}')
@@ -261,12 +265,17 @@ class TrackerNode(Node):
             return
         if stamp_ns <= 0:
             return
-        missing = self.gaps.missing(stamp_ns, scan_time if math.isfinite(scan_time) else 0.0)
+        gaps = self.gaps.setdefault(getattr(msg.header, 'frame_id', ''), ScanGaps())
+        missing = gaps.missing(stamp_ns, scan_time if math.isfinite(scan_time) else 0.0)
         if missing:
             self._count(SCANS_DROPPED, f'{missing} scan(s) missing before the one stamped '
-                        f'{stamp_ns * 1e-9:.3f} s ({self.gaps.total} in all): the '
+                        f'{stamp_ns * 1e-9:.3f} s ({self.gaps_total()} in all): the '
                         f'subscription queue dropped them while the node was busy, or the '
                         f'driver never sent them')
+
+    def gaps_total(self) -> int:
+        """Scans missing between stamps, over every scanner."""
+        return sum(g.total for g in self.gaps.values())
 
     def check_pace(self, stamp_ns: int, took: float) -> None:
         """Count (and say) FALLING_BEHIND_SCANS scans in a row that took longer than the
@@ -295,7 +304,8 @@ class TrackerNode(Node):
     def summary(self) -> str:
         """One line for the log at exit: scans handled and the events met."""
         events = ', '.join(f'{k} {v}' for k, v in sorted(self.counts.items())) or 'none'
-        missing = f' ({self.gaps.total} more never reached it)' if self.gaps.total else ''
+        missing = (f' ({self.gaps_total()} more never reached it)' if self.gaps_total()
+                   else '')
         return f'stopping after {self.scans} scans{missing}; events: {events}'
 
     def _count(self, kind: str, text: str, error: bool = False) -> None:
@@ -328,7 +338,7 @@ class TrackerNode(Node):
         values['processing_time_ms'] = round(result.processing_time * 1e3, 3)
         values['objects'] = len(result.estimates)
         values['scans'] = self.scans
-        values['scans_dropped'] = self.gaps.total
+        values['scans_dropped'] = self.gaps_total()
         values['reason'] = result.error or ''
         values['frame'] = self.frame_note
         for k, v in sorted(self.counts.items()):
@@ -347,7 +357,8 @@ USAGE = f"""usage: tracker_node [--ros-args [-p NAME:=VALUE] [--params-file FILE
 Tracks pedestrians, bicycles and cars in a sensor_msgs/LaserScan topic with a GGIW-CPHD
 filter (the extended_tracker package).
 
-  subscribes  scan (sensor_msgs/LaserScan), /tf and /tf_static (tf2_msgs/TFMessage)
+  subscribes  scan (sensor_msgs/LaserScan), or the topics of -p scan_topics:=[a, b];
+              /tf and /tf_static (tf2_msgs/TFMessage)
   publishes   tracks (extended_tracker_msgs/ExtendedObjectArray)
               tracks/markers (visualization_msgs/MarkerArray)
               tracks/diagnostics (diagnostic_msgs/DiagnosticArray)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
-from ..config import iter_leaves, leaf_kind, TrackerConfig
+from ..config import iter_leaves, leaf_kind, to_flat, TrackerConfig
 from ..configio import double_hint, DOUBLE_LIST_HINT
 
 _PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
@@ -59,4 +59,28 @@ def range_error(name: str, desc: ParameterDescriptor, value) -> str:
 
 
 
-__all__ = ['parameter_descriptors', 'type_error', 'range_error']
+
+def unknown_overrides(node) -> tuple[list, list]:
+    """
+    ``(names, said)``: the names given to ``node`` (a parameter file, ``-p``,
+    overrides) that it does not have, and each as said in the log, with the nearest
+    known name. rclpy ignores them, so a misspelt parameter would otherwise leave its
+    default in force without a word. (The offline tools refuse an unknown key outright;
+    a parameter file's ``/**`` section may hold other nodes' parameters, so the node
+    runs on.)
+    """
+    import difflib
+
+    # rclpy keeps what it was given in Node._parameter_overrides (Jazzy has no public
+    # accessor); a release without it makes this check say nothing, not fail
+    unknown = sorted(name for name in getattr(node, '_parameter_overrides', {})
+                     if not node.has_parameter(name))
+    known = list(to_flat(TrackerConfig())) + ['scan_topics']
+    said = []
+    for name in unknown:
+        near = difflib.get_close_matches(name, known, n=1)
+        said.append(f'{name} (did you mean {near[0]}?)' if near else name)
+    return unknown, said
+
+
+__all__ = ['parameter_descriptors', 'type_error', 'range_error', 'unknown_overrides']
