@@ -43,7 +43,7 @@ from .errors import ScanError
 from .filter.state import FilterState, predict_state
 from .frames.motion import frame_jump
 from .frames.pose import Placement, Pose2
-from .scanners import anchored, seen_elsewhere, View, with_scanner
+from .scanners import anchored, seen_elsewhere, silenced, View, with_scanner
 from .sensing.background import BackgroundState
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
 from .sensing.static_map import StaticMap
@@ -53,7 +53,8 @@ from .tracks.record import TrackRecord
 from .tracks.times import TrackTimes
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
-          'unexplained_scan', 'zero_stamp', 'scan_layout_changed', 'frame_jump')
+          'unexplained_scan', 'zero_stamp', 'scan_layout_changed', 'frame_jump',
+          'scanner_silent')
 
 
 
@@ -201,7 +202,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     if isinstance(scan_in, StepResult):
         return state, scan_in
     sp, dt, event, error = scan_in.points, scan_in.dt, scan_in.event, scan_in.error
-    state = scan_in.state                   # with the scan's scanner's own parts
+    state, quiet = silenced(scan_in.state, scan_in.stamp_ns, cfg.timing.max_gap)
+    if quiet:
+        event, error = _with_event(event, error, 'scanner_silent', _silent(quiet, state))
     pose = place.pose if place is not None else None
     state, leaving = anchored(state, pose, scan_in.event == 'frame_jump')
     diag = _scan_counts(sp)
@@ -342,6 +345,12 @@ def _layout_changed(background, sp: ScanPoints, cfg: TrackerConfig) -> bool:
     """Whether the scan's beams differ from those the background was learned on."""
     return (cfg.background.enabled and background is not None and len(sp.angles) > 0
             and not background.matches(sp))
+
+
+def _silent(frames: list, state: PipelineState) -> str:
+    """The reason of event ``scanner_silent``."""
+    return (f'no scan from {", ".join(frames)} for over timing.max_gap: tracking goes on '
+            f'with {state.scanner}')
 
 
 def _unexplained(n_points: int, cfg: TrackerConfig) -> str:

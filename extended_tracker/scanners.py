@@ -49,9 +49,10 @@ class View:
 
 
 def seen_elsewhere(state: 'PipelineState', xy: np.ndarray) -> np.ndarray | None:
-    """Which of the points ``xy`` (fixed frame) another scanner looked at in its last
-    scan; None with one scanner."""
-    views = [sc.view for sc in state.others.values() if sc.view is not None]
+    """Which of the points ``xy`` (fixed frame) another scanner, not silent, looked at in
+    its last scan; None with one scanner."""
+    views = [sc.view for sc in state.others.values()
+             if sc.view is not None and not sc.silent]
     if not views:
         return None
     return np.any([v.sees(xy) for v in views], axis=0)
@@ -67,6 +68,23 @@ class Scanner:
     pose: Pose2 | None = None
     pose_ns: int | None = None
     view: View | None = None
+    silent: bool = False
+
+
+def silenced(state: 'PipelineState', now_ns: int, max_gap: float):
+    """
+    ``(state, frames)``: the other scanners whose last scan is more than ``max_gap``
+    older than ``now_ns`` marked silent (their field of view no longer keeps what this
+    scanner cannot see), and those newly so. A scanner that comes back is heard again
+    (:func:`with_scanner`).
+    """
+    quiet = [f for f, sc in state.others.items() if not sc.silent and sc.pose_ns is not None
+             and (now_ns - sc.pose_ns) * 1e-9 > max_gap]
+    if not quiet:
+        return state, []
+    others = {f: replace(sc, silent=True) if f in quiet else sc
+              for f, sc in state.others.items()}
+    return replace(state, others=others), sorted(quiet)
 
 
 def with_scanner(state: 'PipelineState', frame: str):
@@ -107,4 +125,4 @@ def anchored(state: 'PipelineState', pose: Pose2 | None, jumped: bool):
     return replace(state, anchor=pose, moving=True), True
 
 
-__all__ = ['Scanner', 'View', 'seen_elsewhere', 'with_scanner', 'anchored', 'STILL_DISTANCE', 'STILL_ANGLE']
+__all__ = ['Scanner', 'View', 'seen_elsewhere', 'silenced', 'with_scanner', 'anchored', 'STILL_DISTANCE', 'STILL_ANGLE']

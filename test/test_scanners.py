@@ -209,3 +209,25 @@ def test_scan_topics_must_name_topics():
 
     with pytest.raises(ConfigError, match='scan_topics must name at least one topic'):
         NodeHarness({'scan_topics': ['']})
+
+
+def test_a_scanner_that_goes_silent_is_said_once_and_heard_again():
+    """The rear scanner's topic stops from 3 s to 7 s: once its last scan is timing.max_gap
+    old, the front scanner's scan says so (event scanner_silent, once), the rear's view
+    no longer keeps what the front cannot see, and tracking goes on; the rear's scans are
+    taken again when they come back."""
+    state, events, fronts_only = PipelineState.initial(CFG), [], []
+    for scan, _, place in two_scanner_scans(10.0, 8):
+        t = (scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec - 1_700_000_000 * 10**9) * 1e-9
+        rear = scan.header.frame_id == 'rear_laser'
+        if rear and 3.0 <= t < 7.0:
+            continue
+        state, res = step(state, scan, CFG, place=place)
+        if res.event:
+            events.append((round(t, 2), res.event, res.error))
+        if 5.5 <= t < 7.0:
+            fronts_only.append(len(res.estimates))
+    assert [e[:2] for e in events] == [(5.0, 'scanner_silent')]
+    assert 'no scan from rear_laser' in events[0][2] and 'with front_laser' in events[0][2]
+    assert min(fronts_only) >= 1
+    assert not state.others[next(iter(state.others))].silent   # heard again at the end
