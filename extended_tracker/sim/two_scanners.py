@@ -25,7 +25,7 @@ def two_scanner_scenes() -> list[Scene]:
     people = (
         # circles the robot at 2.2 m, crossing both seams of the fields of view
         SimObject((2.2, 0.0), (0.0, 1.1), turn_rate=0.5, kind='circling'),
-        SimObject((-4.5, 3.0), (1.0, -0.45), t_start=1.0, kind='crossing'),
+        SimObject((-4.5, 3.0), (1.0, -0.45), t_start=3.0, kind='crossing'),
         SimObject((3.5, -3.5), (-0.4, 0.9), t_start=2.0, kind='diagonal'),
     )
     scenes = []
