@@ -231,3 +231,55 @@ def test_a_scanner_that_goes_silent_is_said_once_and_heard_again():
     assert 'no scan from rear_laser' in events[0][2] and 'with front_laser' in events[0][2]
     assert min(fronts_only) >= 1
     assert not state.others[next(iter(state.others))].silent   # heard again at the end
+
+
+def test_scanners_at_different_rates_take_turns_as_their_stamps_fall():
+    """The rear scanner at 12.5 Hz, the front at 10: the scans interleave unevenly
+    (sometimes two of one in a row), and nothing restarts; the circling person keeps
+    one id."""
+    from extended_tracker.sim.two_scanners import two_scanner_scenes
+
+    state, frames, ids = PipelineState.initial(CFG), [], set()
+    scenes = two_scanner_scenes(rates=(10.0, 12.5))
+    for scan, truth, place in two_scanner_scans(8.0, 8, scenes):
+        state, res = step(state, scan, CFG, place=place)
+        assert res.event is None, res.error
+        frames.append(scan.header.frame_id)
+        person = next(o for o in truth if o.kind == 'circling')
+        e = res.estimates
+        if len(e) and np.min(np.linalg.norm(e.m[:, :2] - person.centre, axis=1)) < 0.7:
+            ids.add(int(e.label[np.argmin(np.linalg.norm(e.m[:, :2] - person.centre,
+                                                          axis=1))]))
+    assert frames.count('rear_laser') == 100 and frames.count('front_laser') == 80
+    assert any(a == b == 'rear_laser' for a, b in zip(frames, frames[1:]))
+    assert len(ids) == 1
+
+
+def test_mounts_given_as_parameters_place_the_scanners():
+    """No /tf_static: the node's mounts parameter places the two scanners on base_link,
+    and the tracks are those of the transforms published; a malformed entry is refused
+    at start-up."""
+    from sensor_msgs.msg import LaserScan
+
+    from extended_tracker.errors import ConfigError
+    from extended_tracker.ros.testing import laser_scan, NodeHarness
+    from extended_tracker.sim.two_scanners import MOUNTS
+
+    mounts = [f'base_link {f} {m.x!r} {m.y!r} {m.yaw!r}' for f, m in MOUNTS.items()]
+    params = {'scan_topics': ['front/scan', 'rear/scan'], 'tf.fixed_frame': 'base_link',
+              'model.clutter_density': 'beam', 'mounts': mounts}
+    with NodeHarness(params) as h:
+        pubs = {f: h.probe.create_publisher(LaserScan, f'{f.split("_")[0]}/scan',
+                                            qos_profile_sensor_data()) for f in MOUNTS}
+        h.spin_until(lambda: all(p.get_subscription_count() for p in pubs.values()))
+        state = PipelineState.initial(CFG)
+        for scan, _, place in two_scanner_scans(2.0, 8):
+            n = len(h.tracks)
+            pubs[scan.header.frame_id].publish(laser_scan(scan))
+            assert h.spin_until(lambda: len(h.tracks) > n)
+            state, res = step(state, scan, CFG, place=place)
+            got = np.array([[o.position.x, o.position.y] for o in h.tracks[-1].objects])
+            assert np.allclose(got.reshape(-1, 2), res.estimates.m[:, :2], atol=1e-6)
+        assert h.node.counts == {} and h.tracks[-1].header.frame_id == 'base_link'
+    with pytest.raises(ConfigError, match='"PARENT CHILD X Y YAW"'):
+        NodeHarness({'mounts': ['base_link front_laser 0.3 0.2']})

@@ -24,7 +24,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from extended_tracker_msgs.msg import ExtendedObjectArray
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import (
@@ -49,7 +49,10 @@ from ..report.messages import markers_data, tracks_data
 from .convert import fill
 from .entry import take_signals
 from .events import EventLog, ScanGaps
-from .parameters import parameter_descriptors, range_error, type_error, unknown_overrides
+from .parameters import (
+    declare_scanner_parameters, parameter_descriptors, parse_mounts, range_error, type_error,
+    unknown_overrides,
+)
 from .transforms import TransformSource
 
 # the node's own events. A bug: the pipeline raised on a scan (answered with the previous
@@ -110,6 +113,9 @@ class TrackerNode(Node):
         if not tf.fixed_frame:
             return None, None
         source = TransformSource(self)
+        given = self.get_parameter('mounts').value or []
+        for parent, child, pose in parse_mounts(given):
+            source.add_mount(parent, child, pose)
         placer = ScanPlacer(source.lookup, tf.fixed_frame, tf.timeout, tf.max_tilt,
                             self.cfg.timing.latency, self.cfg.timing.max_gap)
         self.drain_timer = self.create_timer(DRAIN_PERIOD_S, self.drain)
@@ -130,7 +136,7 @@ class TrackerNode(Node):
         empty array, so that GetParameters answers for it: rclpy's service answers
         nothing at all when one name asked for is uninitialised.
         """
-        self._declare_scan_topics()
+        declare_scanner_parameters(self)
         for name, (default, desc) in parameter_descriptors().items():
             try:
                 if isinstance(default, list):
@@ -144,18 +150,6 @@ class TrackerNode(Node):
                 raise ConfigError(type_error(name, desc.type, err)) from err
             except InvalidParameterValueException as err:
                 raise ConfigError(range_error(name, desc, self._given(name))) from err
-
-    def _declare_scan_topics(self) -> None:
-        desc = ParameterDescriptor(
-            name='scan_topics', type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
-            description='LaserScan topics of the scanners to track, all in one tracker in '
-                        'tf.fixed_frame (placed there by TF)')
-        try:
-            topics = self.declare_parameter('scan_topics', ['scan'], desc).value
-        except (InvalidParameterTypeException, InvalidParameterValueException) as err:
-            raise ConfigError(f'scan_topics must be a list of topic names; {err}') from err
-        if not topics or not all(isinstance(t, str) and t for t in topics):
-            raise ConfigError(f'scan_topics must name at least one topic, got {topics!r}')
 
     def _given(self, name: str):
         """The value given for ``name`` (a parameter file, ``-p``), or None."""
@@ -186,6 +180,9 @@ class TrackerNode(Node):
     def _on_set_parameters(self, params) -> SetParametersResult:
         flat = to_flat(self.cfg)
         for p in params:
+            if p.name == 'mounts' and self.transforms is not None:
+                return SetParametersResult(successful=False, reason=(
+                    'mounts is read at start-up: restart the node to change it'))
             if p.name not in flat:
                 continue
             if p.name.startswith('tf.') and p.value != flat[p.name]:

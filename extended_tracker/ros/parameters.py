@@ -10,6 +10,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 
 from ..config import iter_leaves, leaf_kind, to_flat, TrackerConfig
 from ..configio import double_hint, DOUBLE_LIST_HINT
+from ..errors import ConfigError
 
 _PTYPE = {'bool': ParameterType.PARAMETER_BOOL, 'int': ParameterType.PARAMETER_INTEGER,
           'float': ParameterType.PARAMETER_DOUBLE, 'str': ParameterType.PARAMETER_STRING,
@@ -60,6 +61,56 @@ def range_error(name: str, desc: ParameterDescriptor, value) -> str:
 
 
 
+def declare_scanner_parameters(node) -> None:
+    """
+    Declare the node's own ``scan_topics`` (the LaserScan topics of the scanners to
+    track, ``[scan]`` by default, so that ``-r scan:=...`` keeps working) and ``mounts``
+    (:func:`parse_mounts`), both read at start-up.
+    """
+    import rclpy
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
+    desc = ParameterDescriptor(
+        name='scan_topics', type=ParameterType.PARAMETER_STRING_ARRAY, read_only=True,
+        description='LaserScan topics of the scanners to track, all in one tracker in '
+                    'tf.fixed_frame (placed there by TF)')
+    try:
+        topics = node.declare_parameter('scan_topics', ['scan'], desc).value
+    except (InvalidParameterTypeException, InvalidParameterValueException) as err:
+        raise ConfigError(f'scan_topics must be a list of topic names; {err}') from err
+    if not topics or not all(isinstance(t, str) and t for t in topics):
+        raise ConfigError(f'scan_topics must name at least one topic, got {topics!r}')
+    mounts = ParameterDescriptor(
+        name='mounts', type=ParameterType.PARAMETER_STRING_ARRAY,
+        description='scanner mounts nothing publishes on /tf_static: '
+                    '"PARENT CHILD X Y YAW" (m, rad) each; read at start-up')
+    node.declare_parameter('mounts', rclpy.Parameter.Type.STRING_ARRAY, mounts)
+    if node.get_parameter_or('mounts').value is None:   # GetParameters answers for it
+        node.set_parameters([rclpy.Parameter('mounts', rclpy.Parameter.Type.STRING_ARRAY,
+                                             [])])
+
+
+def parse_mounts(entries) -> list:
+    """
+    ``[(parent, child, Pose2), ...]`` of the ``mounts`` parameter: entries
+    ``"PARENT CHILD X Y YAW"`` (m, rad), a scanner's mount on the robot where nothing
+    publishes it on ``/tf_static``. ConfigError with the entry otherwise.
+    """
+    from ..frames.pose import Pose2
+
+    out = []
+    for entry in entries:
+        parts = str(entry).split()
+        try:
+            if len(parts) != 5 or parts[0] == parts[1]:
+                raise ValueError('five fields, two distinct frames')
+            out.append((parts[0], parts[1], Pose2(*(float(v) for v in parts[2:]))))
+        except ValueError as err:
+            raise ConfigError(f'mounts entry {entry!r} must be "PARENT CHILD X Y YAW" (m, '
+                              f'rad): {err}') from err
+    return out
+
+
 def unknown_overrides(node) -> tuple[list, list]:
     """
     ``(names, said)``: the names given to ``node`` (a parameter file, ``-p``,
@@ -75,7 +126,7 @@ def unknown_overrides(node) -> tuple[list, list]:
     # accessor); a release without it makes this check say nothing, not fail
     unknown = sorted(name for name in getattr(node, '_parameter_overrides', {})
                      if not node.has_parameter(name))
-    known = list(to_flat(TrackerConfig())) + ['scan_topics']
+    known = list(to_flat(TrackerConfig())) + ['scan_topics', 'mounts']
     said = []
     for name in unknown:
         near = difflib.get_close_matches(name, known, n=1)
@@ -83,4 +134,5 @@ def unknown_overrides(node) -> tuple[list, list]:
     return unknown, said
 
 
-__all__ = ['parameter_descriptors', 'type_error', 'range_error', 'unknown_overrides']
+__all__ = ['declare_scanner_parameters', 'parameter_descriptors', 'type_error', 'range_error', 'unknown_overrides',
+           'parse_mounts']

@@ -69,6 +69,24 @@ class TransformSource:
             node.create_subscription(TFMessage, '/tf_static', lambda m: self.feed(m, True),
                                      latched)]
 
+    def add_mount(self, parent: str, child: str, pose) -> None:
+        """A static planar transform ``parent -> child`` given to the node (a scanner's
+        mount from its parameters), as if published on ``/tf_static``."""
+        import math
+
+        q = (0.0, 0.0, math.sin(pose.yaw / 2), math.cos(pose.yaw / 2))
+        if self.kind == 'own':
+            self.buffer.set_transform(parent, child, 0, (pose.x, pose.y, 0.0), q, static=True)
+            return
+        from geometry_msgs.msg import TransformStamped
+
+        ts = TransformStamped()
+        ts.header.frame_id, ts.child_frame_id = parent, child
+        ts.transform.translation.x, ts.transform.translation.y = pose.x, pose.y
+        (ts.transform.rotation.x, ts.transform.rotation.y, ts.transform.rotation.z,
+         ts.transform.rotation.w) = q
+        self.buffer.set_transform_static(ts, 'extended_tracker mounts')
+
     def feed(self, msg, static: bool) -> None:
         """Add a TFMessage's transforms to the own buffer."""
         self.messages += 1

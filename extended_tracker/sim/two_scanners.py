@@ -16,10 +16,10 @@ MOUNTS = {'front_laser': Pose2(0.35, 0.25, math.pi / 4),
           'rear_laser': Pose2(-0.35, -0.25, -3 * math.pi / 4)}
 
 
-def two_scanner_scenes() -> list[Scene]:
+def two_scanner_scenes(rates=(10.0, 10.0)) -> list[Scene]:
     """One scene per scanner: the same people, room and robot (standing at the origin of
     ``base_link``, which is the fixed frame here), each scanner 270 deg / 0.5 deg / 12 m
-    at 10 Hz, the rear one 0.05 s after the front one."""
+    at its rate (10 Hz both by default), the rear one 0.05 s after the front one."""
     walls = (((-6.0, -5.0), (6.0, -5.0)), ((6.0, -5.0), (6.0, 5.0)),
              ((6.0, 5.0), (-6.0, 5.0)), ((-6.0, 5.0), (-6.0, -5.0)))
     people = (
@@ -31,7 +31,7 @@ def two_scanner_scenes() -> list[Scene]:
     scenes = []
     for k, (frame, mount) in enumerate(MOUNTS.items()):
         laser = LaserSpec(angle_min=-0.75 * math.pi, angle_max=0.75 * math.pi, n_beams=541,
-                          range_max=12.0, frame_id=frame, phase=0.05 * k)
+                          range_max=12.0, frame_id=frame, phase=0.05 * k, rate_hz=rates[k])
         scenes.append(Scene(objects=people, walls=walls, laser=laser,
                             drive=Drive(((0.0, 0.0, 0.0, 0.0),), mount=mount,
                                         fixed_frame='base_link')))
