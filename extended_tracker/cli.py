@@ -34,7 +34,7 @@ REAL_TOPICS = {
 # bags in ../shared/data/real with two scanners and no transforms between them: the
 # mounts file (in --mounts-dir, config/mounts) that places them on the robot
 REAL_MOUNTS = {
-    'mir_legs_test_stationary': 'mir_250.yaml',
+    'mir_legs_test_stationary': 'mir_100.yaml',
     'obstacle_detector_scans_demo': 'obstacle_detector_demo.yaml',
 }
 

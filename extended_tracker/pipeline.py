@@ -43,7 +43,7 @@ from .errors import ScanError
 from .filter.state import FilterState, predict_state
 from .frames.motion import frame_jump
 from .frames.pose import Placement, Pose2
-from .scanners import anchored, seen_elsewhere, silenced, View, with_scanner
+from .scanners import anchored, mount_check, seen_elsewhere, silenced, View, with_scanner
 from .sensing.background import BackgroundState
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
 from .sensing.static_map import StaticMap
@@ -54,7 +54,7 @@ from .tracks.times import TrackTimes
 
 EVENTS = ('repeated_stamp', 'time_backwards', 'time_gap', 'malformed_scan', 'foreign_frame',
           'unexplained_scan', 'zero_stamp', 'scan_layout_changed', 'frame_jump',
-          'scanner_silent')
+          'scanner_silent', 'mount_mismatch')
 
 
 
@@ -92,6 +92,8 @@ class PipelineState:
         The frame of the scanner ``background``, ``anchor`` and ``pose`` belong to (the
         last scan's); ``others`` holds those of the other scanners placed in the fixed
         frame, ``{frame: Scanner}`` (:func:`scanners.with_scanner`).
+    mount_mismatch : bool
+        The scanners' mounts were found to disagree (said once).
 
     """
 
@@ -112,6 +114,7 @@ class PipelineState:
     scanner: str | None = None
     others: dict = field(default_factory=dict)
     view: View | None = None
+    mount_mismatch: bool = False
 
     @staticmethod
     def initial(cfg: TrackerConfig) -> 'PipelineState':
@@ -230,6 +233,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                         scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
                         times=times, view=pose and View(pose, sp.angle_lo, sp.angle_hi,
                                                         sp.range_max, sp.full_turn))
+    new_state, mismatch = mount_check(new_state)
+    if mismatch:
+        event, error = _with_event(event, error, 'mount_mismatch', mismatch)
     card, mean = _card_of(new_state)
     return new_state, StepResult(scan_in.stamp_ns, scan_in.frame_id, estimates, card, mean,
                                  fg.points, fg.background_points, diag, event, error,

@@ -104,6 +104,66 @@ def with_scanner(state: 'PipelineState', frame: str):
                    anchor=mine.anchor, pose=mine.pose, view=mine.view), mine.pose_ns
 
 
+#: scans between two checks of the scanners' mounts against each other
+MOUNT_CHECK_SCANS = 100
+#: the median gap (m) between two scanners' views of the same static structure above
+#: which their mounts disagree
+MOUNT_TOLERANCE = 0.1
+#: returns of two scanners this near (m) see the same structure; fewer than
+#: MOUNT_OVERLAP such pairs say nothing
+MOUNT_NEAR, MOUNT_OVERLAP = 0.5, 30
+
+
+def background_points(background: BackgroundState | None, anchor: Pose2 | None):
+    """The static returns a scanner's per-beam background learned, in the fixed frame."""
+    if background is None or anchor is None:
+        return np.zeros((0, 2))
+    known = np.isfinite(background.background)
+    r, a = background.background[known], background.angles[known]
+    return anchor.to_outer(np.column_stack([r * np.cos(a), r * np.sin(a)]))
+
+
+def mount_disagreement(state: 'PipelineState') -> tuple[float, str] | None:
+    """
+    ``(gap, pair)``: the largest, over pairs of scanners, median distance from one's
+    learned static returns to the other's nearest, where both see the same structure
+    (within ``MOUNT_NEAR``); None with fewer than two scanners or too little overlap.
+    Scanners placed right see a wall where the other does (a few centimetres: noise and
+    beam spacing); a mount off by a few degrees puts it tens of centimetres apart.
+    """
+    from scipy.spatial import cKDTree
+
+    views = {state.scanner: background_points(state.background, state.anchor)}
+    views.update({f: background_points(sc.background, sc.anchor)
+                  for f, sc in state.others.items()})
+    worst = None
+    names = sorted(f for f, p in views.items() if len(p))
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            d, _ = cKDTree(views[b]).query(views[a], distance_upper_bound=MOUNT_NEAR)
+            d = d[np.isfinite(d)]
+            if len(d) >= MOUNT_OVERLAP and (worst is None or np.median(d) > worst[0]):
+                worst = (float(np.median(d)), f'{a} and {b}')
+    return worst
+
+
+def mount_check(state: 'PipelineState') -> tuple['PipelineState', str | None]:
+    """
+    ``(state, reason)``: every ``MOUNT_CHECK_SCANS`` scans of several scanners, whether
+    their mounts disagree with what they show (:func:`mount_disagreement` over
+    ``MOUNT_TOLERANCE``); said once (the reason of event ``mount_mismatch``), None
+    otherwise.
+    """
+    if not state.others or state.mount_mismatch or state.scans % MOUNT_CHECK_SCANS:
+        return state, None
+    worst = mount_disagreement(state)
+    if worst is None or worst[0] <= MOUNT_TOLERANCE:
+        return state, None
+    return replace(state, mount_mismatch=True), (
+        f'{worst[1]} see the same static structure {worst[0]:.2f} m apart (median): '
+        f'their mounts (TF or the mounts given) disagree with the scans')
+
+
 def anchored(state: 'PipelineState', pose: Pose2 | None, jumped: bool):
     """
     ``(state, leaving)``: the state anchored where the scanner stands, and whether it
@@ -125,4 +185,4 @@ def anchored(state: 'PipelineState', pose: Pose2 | None, jumped: bool):
     return replace(state, anchor=pose, moving=True), True
 
 
-__all__ = ['Scanner', 'View', 'seen_elsewhere', 'silenced', 'with_scanner', 'anchored', 'STILL_DISTANCE', 'STILL_ANGLE']
+__all__ = ['Scanner', 'View', 'seen_elsewhere', 'silenced', 'mount_disagreement', 'mount_check', 'with_scanner', 'anchored', 'STILL_DISTANCE', 'STILL_ANGLE']
