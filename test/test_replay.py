@@ -260,12 +260,18 @@ def test_bundled_bag_replays():
 
 def test_topics_of_one_frame_are_one_scanner(tmp_path):
     """Two topics of one frame (a scanner published twice): one is tracked, the summary
-    says which; --scan-topic picks another, and one the bag lacks is refused."""
+    says which, and the output keeps the other's scans as read; --scan-topic picks
+    another, and one the bag lacks is refused."""
+    from rosbags.rosbag2 import Reader
+
     write_ros2(tmp_path / 'in', topics=('/front_scan', '/rear_scan'), seconds=1.0)
     s = replay(tmp_path / 'in', tmp_path / 'out', CFG, progress=False)
     assert s.topic == '/front_scan' and s.scans == 10
     assert s.notes == ["/front_scan, /rear_scan share the frame 'laser': one scanner, "
                        '/front_scan taken (the most scans)']
+    with Reader(tmp_path / 'out') as r:
+        counts = {c.topic: c.msgcount for c in r.connections}
+    assert counts['/scan'] == counts['/rear_scan'] == counts['/tracks'] == 10
     s = replay(tmp_path / 'in', tmp_path / 'out2', CFG, scan_topic='rear_scan', progress=False)
     assert s.topic == '/rear_scan' and s.scans == 10 and not s.notes
     with pytest.raises(BagError, match='choose one of'):

@@ -113,9 +113,19 @@ def ros2_frame_id(frame_id: str) -> str:
     return name if name else frame_id
 
 
+@dataclass(frozen=True)
+class Untracked:
+    """What :func:`replay_results` yields for a scan of a topic it does not track (a
+    scanner's second topic): its topic and record time, for the output bag."""
+
+    topic: str
+    record_ns: int
+
+
 def replay_results(input_path, cfg: TrackerConfig, scan_topic=None,
                    renamed_frames: dict | None = None, fixed_frame: str = '',
-                   transforms: list | None = None, mounts: Mounts = Mounts()):
+                   transforms: list | None = None, mounts: Mounts = Mounts(),
+                   untracked: bool = False):
     """
     Yield ``(scan_message, StepResult)`` for every LaserScan of a bag, in time order.
 
@@ -129,10 +139,12 @@ def replay_results(input_path, cfg: TrackerConfig, scan_topic=None,
     for its transform); ``transforms``, when given, collects ``(topic, record_ns, msg)``
     of every transform message read, for the output bag. Every scanner's scans are
     tracked (one topic of those that share a frame), placed by the bag's transforms and
-    the ``mounts``.
+    the ``mounts``. With ``untracked``, the scans of topics not tracked (a scanner's
+    second topic) are yielded too, as ``(scan, Untracked)``.
     """
-    reader, conns = open_scans(input_path, scan_topic)
-    conns = one_per_scanner(reader, conns)[0]
+    reader, every = open_scans(input_path, scan_topic)
+    conns = one_per_scanner(reader, every)[0]
+    extra = [c for c in every if c not in conns] if untracked else []
     tf_conns = tf_connections(reader) if fixed_frame else []
     buffer = TransformBuffer(cache_ns=None)
     mounts.add_to(buffer)
@@ -140,9 +152,12 @@ def replay_results(input_path, cfg: TrackerConfig, scan_topic=None,
                         cfg.timing.latency, cfg.timing.max_gap)
     try:
         state = PipelineState.initial(cfg)
-        for conn, record_ns, raw in reader.messages(connections=conns + tf_conns):
+        for conn, record_ns, raw in reader.messages(connections=conns + tf_conns + extra):
             stopping.check()
             msg = _decode(reader, raw, conn)
+            if conn in extra:
+                yield _renamed(msg, renamed_frames), Untracked(conn.topic, record_ns)
+                continue
             if conn in tf_conns:
                 feed(buffer, msg, is_static(conn))
                 if transforms is not None:
@@ -250,7 +265,7 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic=None, plot_pa
         plot_path = image_path(plot_path)
     frame, why, topics, notes = choose_fixed_frame(input_path, scan_topic, cfg, fixed_frame,
                                                    mounts)
-    reader, conns = open_scans(input_path, list(topics))
+    reader, conns = open_scans(input_path, scan_topic)   # a scanner's second topic too
     total = sum(c.msgcount for c in conns)
     reader.close()
     topic = ', '.join(sorted(topics))
@@ -268,8 +283,8 @@ def replay(input_path, output_path, cfg: TrackerConfig, scan_topic=None, plot_pa
     bar = _Progress(total) if progress else None
     try:
         transforms: list = []
-        results = replay_results(input_path, cfg, list(topics), summary.renamed_frames, frame,
-                                 transforms, mounts)
+        results = replay_results(input_path, cfg, scan_topic, summary.renamed_frames, frame,
+                                 transforms, mounts, untracked=True)
         fov = _write_bag(out, results, cfg, tally, sketch, bar, transforms,
                          {f: t for t, f in topics.items()} if len(topics) > 1 else {})
     finally:
@@ -306,6 +321,13 @@ def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, 
         c_tf = {}
         for k, (scan, res) in enumerate(results):
             _write_transforms(writer, store, c_tf, transforms)
+            if isinstance(res, Untracked):      # a scanner's other topic: kept as read
+                if res.topic not in c_scans:
+                    c_scans[res.topic] = writer.add_connection(res.topic, SCAN_TYPE,
+                                                               typestore=store)
+                writer.write(c_scans[res.topic], res.record_ns, store.serialize_cdr(
+                    build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
+                continue
             if res.event != 'malformed_scan' and (res.scanner or '') not in fov:
                 fov[res.scanner or ''] = scan_fov(scan)
             tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
