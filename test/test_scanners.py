@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from rclpy.qos import qos_profile_sensor_data
 
 from extended_tracker.config import from_dict
 from extended_tracker.evaluation.metrics import score_sequence
@@ -168,39 +169,46 @@ def _copy_without_transforms(src, dst):
                 w.write(conns[c.id], t, raw)
 
 
+def node_against_pipeline(h, seconds: float):
+    """Feed the two-scanner scans to the node under ``h`` on ``front/scan`` and
+    ``rear/scan`` in stamp order, each reply checked against the pipeline's estimates on
+    the same scans; returns the last reply."""
+    from sensor_msgs.msg import LaserScan
+
+    from extended_tracker.ros.testing import laser_scan
+    from extended_tracker.sim.two_scanners import MOUNTS
+
+    pubs = {f: h.probe.create_publisher(LaserScan, f'{f.split("_")[0]}/scan',
+                                        qos_profile_sensor_data) for f in MOUNTS}
+    h.spin_until(lambda: all(p.get_subscription_count() for p in pubs.values()))
+    state = PipelineState.initial(CFG)
+    for scan, _, place in two_scanner_scans(seconds, 8):
+        n = len(h.tracks)
+        pubs[scan.header.frame_id].publish(laser_scan(scan))
+        assert h.spin_until(lambda: len(h.tracks) > n)
+        state, res = step(state, scan, CFG, place=place)
+        reply = h.tracks[-1]
+        got = np.array([[o.position.x, o.position.y] for o in reply.objects])
+        assert reply.header.frame_id == 'base_link'
+        assert np.allclose(got.reshape(-1, 2), res.estimates.m[:, :2], atol=1e-6)
+    return reply
+
+
+NODE_PARAMS = {'scan_topics': ['front/scan', 'rear/scan'], 'tf.fixed_frame': 'base_link',
+               'model.clutter_density': 'beam'}
+
+
 def test_the_node_tracks_two_scan_topics_as_one():
     """scan_topics with the two corner scanners, their mounts on /tf_static, the fixed
     frame base_link: one tracks stream, the pipeline's on the merged scans."""
-    from sensor_msgs.msg import LaserScan
-
-    from extended_tracker.ros.testing import laser_scan, NodeHarness
+    from extended_tracker.ros.testing import NodeHarness
     from extended_tracker.sim.two_scanners import MOUNTS
 
-    params = {'scan_topics': ['front/scan', 'rear/scan'], 'tf.fixed_frame': 'base_link',
-              'model.clutter_density': 'beam'}
-    with NodeHarness(params) as h:
-        pubs = {f: h.probe.create_publisher(LaserScan, f'{f.split("_")[0]}/scan',
-                                            qos_profile_sensor_data()) for f in MOUNTS}
-        h.spin_until(lambda: all(p.get_subscription_count() for p in pubs.values()))
+    with NodeHarness(NODE_PARAMS) as h:
         for frame, m in MOUNTS.items():
             h.send_transform('base_link', frame, m.x, m.y, m.yaw, static=True)
-        state = PipelineState.initial(CFG)
-        for scan, _, place in two_scanner_scans(3.0, 8):
-            n = len(h.tracks)
-            pubs[scan.header.frame_id].publish(laser_scan(scan))
-            assert h.spin_until(lambda: len(h.tracks) > n)
-            state, res = step(state, scan, CFG, place=place)
-            reply = h.tracks[-1]
-            got = np.array([[o.position.x, o.position.y] for o in reply.objects])
-            assert reply.header.frame_id == 'base_link'
-            assert np.allclose(got.reshape(-1, 2), res.estimates.m[:, :2], atol=1e-6)
+        reply = node_against_pipeline(h, 3.0)
         assert h.node.counts == {} and len(reply.objects) >= 2
-
-
-def qos_profile_sensor_data():
-    from rclpy.qos import qos_profile_sensor_data as profile
-
-    return profile
 
 
 def test_scan_topics_must_name_topics():
@@ -259,28 +267,14 @@ def test_mounts_given_as_parameters_place_the_scanners():
     """No /tf_static: the node's mounts parameter places the two scanners on base_link,
     and the tracks are those of the transforms published; a malformed entry is refused
     at start-up."""
-    from sensor_msgs.msg import LaserScan
-
     from extended_tracker.errors import ConfigError
-    from extended_tracker.ros.testing import laser_scan, NodeHarness
+    from extended_tracker.ros.testing import NodeHarness
     from extended_tracker.sim.two_scanners import MOUNTS
 
     mounts = [f'base_link {f} {m.x!r} {m.y!r} {m.yaw!r}' for f, m in MOUNTS.items()]
-    params = {'scan_topics': ['front/scan', 'rear/scan'], 'tf.fixed_frame': 'base_link',
-              'model.clutter_density': 'beam', 'mounts': mounts}
-    with NodeHarness(params) as h:
-        pubs = {f: h.probe.create_publisher(LaserScan, f'{f.split("_")[0]}/scan',
-                                            qos_profile_sensor_data()) for f in MOUNTS}
-        h.spin_until(lambda: all(p.get_subscription_count() for p in pubs.values()))
-        state = PipelineState.initial(CFG)
-        for scan, _, place in two_scanner_scans(2.0, 8):
-            n = len(h.tracks)
-            pubs[scan.header.frame_id].publish(laser_scan(scan))
-            assert h.spin_until(lambda: len(h.tracks) > n)
-            state, res = step(state, scan, CFG, place=place)
-            got = np.array([[o.position.x, o.position.y] for o in h.tracks[-1].objects])
-            assert np.allclose(got.reshape(-1, 2), res.estimates.m[:, :2], atol=1e-6)
-        assert h.node.counts == {} and h.tracks[-1].header.frame_id == 'base_link'
+    with NodeHarness({**NODE_PARAMS, 'mounts': mounts}) as h:
+        node_against_pipeline(h, 2.0)
+        assert h.node.counts == {}
     with pytest.raises(ConfigError, match='"PARENT CHILD X Y YAW"'):
         NodeHarness({'mounts': ['base_link front_laser 0.3 0.2']})
 

@@ -322,19 +322,17 @@ def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, 
         for k, (scan, res) in enumerate(results):
             _write_transforms(writer, store, c_tf, transforms)
             if isinstance(res, Untracked):      # a scanner's other topic: kept as read
-                if res.topic not in c_scans:
-                    c_scans[res.topic] = writer.add_connection(res.topic, SCAN_TYPE,
-                                                               typestore=store)
-                writer.write(c_scans[res.topic], res.record_ns, store.serialize_cdr(
-                    build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
+                writer.write(_connection(writer, store, c_scans, res.topic), res.record_ns,
+                             store.serialize_cdr(build_message(store, SCAN_TYPE,
+                                                               scan_data(scan)), SCAN_TYPE))
                 continue
             if res.event != 'malformed_scan' and (res.scanner or '') not in fov:
                 fov[res.scanner or ''] = scan_fov(scan)
             tracks = build_message(store, TRACKS_TYPE, tracks_data(res, cfg))
             mdata, prev_ids = markers_data(res, cfg, prev_ids)
             markers = build_message(store, MARKERS_TYPE, mdata)
-            c_scan = c_scans[topic_of.get(getattr(scan.header, 'frame_id', ''), SCAN_TOPIC)] \
-                if topic_of else c_scans[SCAN_TOPIC]
+            c_scan = _connection(writer, store, c_scans,
+                                 topic_of.get(getattr(scan.header, 'frame_id', ''), SCAN_TOPIC))
             writer.write(c_scan, res.stamp_ns, store.serialize_cdr(
                 build_message(store, SCAN_TYPE, scan_data(scan)), SCAN_TYPE))
             writer.write(c_tracks, res.stamp_ns, store.serialize_cdr(tracks, TRACKS_TYPE))
@@ -346,6 +344,13 @@ def _write_bag(out: Path, results, cfg: TrackerConfig, tally: '_Tally', sketch, 
                 bar.update(k + 1)
         _write_transforms(writer, store, c_tf, transforms)
     return fov
+
+
+def _connection(writer, store, connections: dict, topic: str):
+    """The output's LaserScan connection on ``topic``, added the first time."""
+    if topic not in connections:
+        connections[topic] = writer.add_connection(topic, SCAN_TYPE, typestore=store)
+    return connections[topic]
 
 
 def _write_transforms(writer, store, connections: dict, transforms: list) -> None:

@@ -7,14 +7,13 @@ where the bag has no transforms for them, and the frame the replay tracks in.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import math
 from pathlib import Path
 
 from ..config import TrackerConfig
 from ..errors import BagError
 from ..frames.buffer import TransformBuffer
 from ..frames.pose import Pose2
-from .transforms import linked, links, tf_connections
+from .transforms import linked, links, root, tf_connections
 
 
 @dataclass(frozen=True)
@@ -30,8 +29,7 @@ class Mounts:
     def add_to(self, buffer: TransformBuffer) -> None:
         """Put the mounts into ``buffer`` as static transforms."""
         for frame, p in self.poses.items():
-            buffer.set_transform(self.base_frame, frame, 0, (p.x, p.y, 0.0),
-                                 (0.0, 0.0, math.sin(p.yaw / 2), math.cos(p.yaw / 2)),
+            buffer.set_transform(self.base_frame, frame, 0, (p.x, p.y, 0.0), p.quaternion,
                                  static=True)
 
 
@@ -104,20 +102,12 @@ def choose_frame(reader, frames: list[str], cfg: TrackerConfig, mounts: Mounts,
                     f'{frames[0]!r} to {want!r}')
     if mounts.base_frame and all(linked(tree, f, mounts.base_frame) for f in frames):
         return mounts.base_frame, 'the mounts place the scanners on it'
-    roots = {_root(tree, f) for f in frames}
+    roots = {root(tree, f) for f in frames}
     if len(roots) == 1:
-        (root,) = roots
-        return root, 'the bag\'s transforms link the scanners through it'
+        (common,) = roots
+        return common, 'the bag\'s transforms link the scanners through it'
     raise BagError(f'nothing links the scanners\' frames {", ".join(map(repr, frames))}: '
                    f'give their mounts (--mounts FILE) or one --scan-topic')
-
-
-def _root(tree: dict[str, str], frame: str) -> str:
-    seen = set()
-    while frame in tree and frame not in seen:
-        seen.add(frame)
-        frame = tree[frame]
-    return frame
 
 
 __all__ = ['Mounts', 'load_mounts', 'one_per_scanner', 'choose_frame']

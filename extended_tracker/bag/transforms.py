@@ -47,15 +47,18 @@ def links(reader, conns) -> dict[str, str]:
     return out
 
 
+def root(tree: dict[str, str], frame: str) -> str:
+    """The root of ``frame`` in a tree of ``{child: parent}`` (itself when unknown)."""
+    seen = set()
+    while frame in tree and frame not in seen:
+        seen.add(frame)
+        frame = tree[frame]
+    return frame
+
+
 def linked(tree: dict[str, str], a: str, b: str) -> bool:
     """Whether frames ``a`` and ``b`` are in one tree of ``{child: parent}``."""
-    def root(f):
-        seen = set()
-        while f in tree and f not in seen:
-            seen.add(f)
-            f = tree[f]
-        return f
-    return root(a) == root(b)
+    return root(tree, a) == root(tree, b)
 
 
 def tf_data(msg) -> dict:
@@ -74,4 +77,4 @@ def tf_data(msg) -> dict:
     return {'transforms': out}
 
 
-__all__ = ['tf_connections', 'feed', 'links', 'linked', 'tf_data', 'TF_TYPE', 'is_static']
+__all__ = ['tf_connections', 'feed', 'links', 'linked', 'root', 'tf_data', 'TF_TYPE', 'is_static']

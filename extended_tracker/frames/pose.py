@@ -63,6 +63,11 @@ class Pose2:
         """(n, 2) directions or offsets given in this frame, in the outer one."""
         return vectors if self.is_identity else vectors @ self.rotation.T
 
+    @property
+    def quaternion(self) -> tuple[float, float, float, float]:
+        """``(x, y, z, w)`` of the heading: a turn of ``yaw`` about the vertical."""
+        return 0.0, 0.0, math.sin(self.yaw / 2), math.cos(self.yaw / 2)
+
     def distance_to(self, other: 'Pose2') -> tuple[float, float]:
         """How far apart two poses are: metres, and radians of heading."""
         return (math.hypot(other.x - self.x, other.y - self.y),

@@ -35,6 +35,7 @@ from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
 from ..bag.bagio import scan_data
+from ..frames.pose import Pose2
 from .convert import fill
 from .node import TrackerNode
 
@@ -131,8 +132,6 @@ class NodeHarness:
         ``static``, latched) and spin until the node has taken it in (its own buffer;
         with tf2_ros, a short spin).
         """
-        import math
-
         from geometry_msgs.msg import TransformStamped
         from rclpy.qos import DurabilityPolicy, QoSProfile
         from tf2_msgs.msg import TFMessage
@@ -147,7 +146,7 @@ class NodeHarness:
         ts.header.stamp.sec, ts.header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
         ts.header.frame_id, ts.child_frame_id = parent, child
         ts.transform.translation.x, ts.transform.translation.y = float(x), float(y)
-        ts.transform.rotation.z, ts.transform.rotation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+        _, _, ts.transform.rotation.z, ts.transform.rotation.w = Pose2(yaw=yaw).quaternion
         source = self.node.transforms
         before = getattr(source, 'messages', 0)
         self._tf_pubs[topic].publish(TFMessage(transforms=[ts]))

@@ -72,9 +72,7 @@ class TransformSource:
     def add_mount(self, parent: str, child: str, pose) -> None:
         """A static planar transform ``parent -> child`` given to the node (a scanner's
         mount from its parameters), as if published on ``/tf_static``."""
-        import math
-
-        q = (0.0, 0.0, math.sin(pose.yaw / 2), math.cos(pose.yaw / 2))
+        q = pose.quaternion
         if self.kind == 'own':
             self.buffer.set_transform(parent, child, 0, (pose.x, pose.y, 0.0), q, static=True)
             return

@@ -188,22 +188,9 @@ def _crossed(smap: StaticMap, sp: ScanPoints, pose: Pose2) -> np.ndarray:
     """The cells the beams with a return crossed, well short of it: ``FREE_SHORT_CELLS``
     cells off the surface it hit, measured across the surface (a beam that grazes a wall
     runs along it, and would clear the wall's own cells)."""
-    n = len(smap.score)
-    r = sp.ranges[sp.beam]
     clear = FREE_SHORT_CELLS * smap.cell / np.maximum(_incidence(sp), 0.05)
-    reach = np.minimum(r - clear, 0.5 * n * smap.cell)
-    step = 0.7 * smap.cell
-    out = np.zeros((n, n), bool)
-    if not len(reach) or reach.max() <= step:
-        return out
-    t = np.arange(step, reach.max(), step)
-    heading = sp.angles[sp.beam] + pose.yaw
-    along = t[None, :] <= reach[:, None]
-    x = pose.x + np.cos(heading)[:, None] * t[None, :]
-    y = pose.y + np.sin(heading)[:, None] * t[None, :]
-    ij, inside = smap.index(np.stack([x[along], y[along]], axis=1))
-    out[ij[inside, 0], ij[inside, 1]] = True
-    return out
+    first = np.full(len(sp.beam), 0.7 * smap.cell)
+    return _along(smap, pose, sp.angles[sp.beam], first, sp.ranges[sp.beam] - clear)
 
 
 def _incidence(sp: ScanPoints) -> np.ndarray:

@@ -139,15 +139,13 @@ def _write_scanners(out: Path, name: str, scenes: list, seed: int, duration: flo
 
 def _put_transform(writer, store, conn, ns: int, parent: str, child: str, pose) -> None:
     """One planar transform ``parent -> child`` at ``ns`` on ``conn``."""
-    import math
-
     sec, nsec = divmod(ns, 1_000_000_000)
+    qx, qy, qz, qw = pose.quaternion
     data = {'transforms': [{
         'header': {'stamp': {'sec': sec, 'nanosec': nsec}, 'frame_id': parent},
         'child_frame_id': child,
         'transform': {'translation': {'x': pose.x, 'y': pose.y, 'z': 0.0},
-                      'rotation': {'x': 0.0, 'y': 0.0, 'z': math.sin(pose.yaw / 2),
-                                   'w': math.cos(pose.yaw / 2)}}}]}
+                      'rotation': {'x': qx, 'y': qy, 'z': qz, 'w': qw}}}]}
     msg = build_message(store, TF_TYPE, data)
     writer.write(conn, ns, store.serialize_cdr(msg, TF_TYPE))
 
