@@ -87,8 +87,8 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     learned = background.learned[sp.beam]
     static_map = state.static_map
     if pose is not None and state.moving:
-        if static_map is None:              # the scanner starts to move: what the
-            static_map = StaticMap.seeded(pose, sp, ~keep, bgc)   # background knew
+        if static_map is None:    # it starts to move: seeded with what the background knew
+            static_map = StaticMap.seeded(pose, sp, ~keep, bgc)
         static_map, on_map, map_learned = update_static_map(static_map, sp, pose, dt, bgc,
                                                             protect)
         keep &= ~on_map
