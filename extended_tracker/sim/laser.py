@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from . import legs
 from ..frames.pose import Pose2
 from ..sensing.scan import Header, ScanData, Stamp
 
@@ -28,10 +29,12 @@ class SimObject:
     Parameters
     ----------
     start : (x, y) m at ``t_start``; velocity : (vx, vy) m/s
-    shape : 'ellipse' (semi-axes ``a``, ``b``) or 'rectangle' (length ``a``, width ``b``)
+    shape : 'ellipse' (semi-axes ``a``, ``b``), 'rectangle' (length ``a``, width ``b``)
+        or 'legs' (a walker at leg height, :mod:`sim.legs`; ``a``, ``b`` unused)
     turn_rate : rad/s (coordinated turn; 0 for constant velocity)
     stops : tuple of (t0, t1) during which the object stands still
     kind : label only ('pedestrian', 'bicycle', 'car', 'standing')
+    gait_phase : rad, of the legs' swing ('legs' only)
 
     """
 
@@ -45,6 +48,7 @@ class SimObject:
     t_end: float = math.inf
     stops: tuple = ()
     kind: str = 'pedestrian'
+    gait_phase: float = 0.0
 
     def state(self, t: float):
         """Centre, velocity and heading at time ``t`` (integrating the stops exactly)."""
@@ -75,6 +79,8 @@ class SimObject:
         """Radius (m) of the smallest circle about the centre that holds the shape."""
         if self.shape == 'rectangle':
             return 0.5 * math.hypot(self.a, self.b)
+        if self.shape == 'legs':
+            return legs.REACH
         return max(self.a, self.b)
 
     def centres(self, times: np.ndarray) -> np.ndarray:
@@ -271,15 +277,21 @@ def simulated_scans(scene: Scene, duration: float, seed: int,
                 continue
             c, vel, h = ob.state(t)
             c_in, h_in = pose.to_inner(c[None, :])[0], h - pose.yaw
+            X = ob.extent(h)
             if ob.shape == 'rectangle':
                 p0, p1 = _rectangle_segments(c_in, h_in, ob.a, ob.b)
                 hit = _ray_segments(d, p0, p1)
+            elif ob.shape == 'legs':
+                gait = (h_in, float(np.hypot(*vel)), t, ob.gait_phase)
+                hit = np.minimum(*(_ray_ellipse(d, p, legs.LEG_EXTENT)
+                                   for p in legs.leg_centres(c_in, *gait)))
+                X = legs.legs_extent(h, *gait[1:])
             else:
                 hit = _ray_ellipse(d, c_in, ob.extent(h_in))
             nearer = hit < r
             r = np.where(nearer, hit, r)
             owner = np.where(nearer, i, owner)
-            truth.append([i, c, vel, ob.extent(h), ob.kind])
+            truth.append([i, c, vel, X, ob.kind])
         # beams the object returns: the nearest hit, within the scanner's range
         counts = np.bincount(owner[(owner >= 0) & (r <= L.range_max)],
                              minlength=len(scene.objects))
