@@ -29,7 +29,7 @@ demo: setup
 	$(TRACKER) replay bags/demo --output out/demo/demo_tracks --plot out/demo/demo.png
 	@if [ -d $(REAL)/legtracker_demo_stationary_simple_environment ]; then \
 	  echo; echo 'real recording: leg_tracker demo (people at leg height, walls, furniture)'; \
-	  $(TRACKER) replay $(REAL)/legtracker_demo_stationary_simple_environment --preset leg_height \
+	  $(TRACKER) replay $(REAL)/legtracker_demo_stationary_simple_environment \
 	    --output out/demo/legtracker_tracks --plot out/demo/legtracker.png; \
 	fi
 

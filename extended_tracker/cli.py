@@ -39,14 +39,6 @@ REAL_MOUNTS = {
 }
 
 
-# bags in ../shared/data/real recorded at leg height: replayed with the leg_height preset
-# (obstacle_detector's moving object shows as two leg arcs 0.1-0.5 m apart)
-REAL_PRESETS = {
-    'legtracker_demo_stationary_simple_environment': 'leg_height',
-    'legtracker_positive_1': 'leg_height',
-    'mir_legs_test_stationary': 'leg_height',
-    'obstacle_detector_scans_demo': 'leg_height',
-}
 
 
 def load_config(path, preset_name=None):
@@ -119,6 +111,7 @@ def _print_real(label: str, s, config: str) -> None:
 def cmd_real(args) -> int:
     from .bag.replay import replay
     from .bag.scanners import load_mounts, Mounts
+    from .config import TrackerConfig
 
     data = Path(args.data)
     out = Path(args.out)
@@ -154,8 +147,7 @@ def cmd_real(args) -> int:
             import shutil
 
             shutil.rmtree(target)
-        name = REAL_PRESETS.get(label)
-        cfg = given or load_config(None, name)
+        cfg = given or TrackerConfig()
         try:
             mounts = (load_mounts(Path(args.mounts_dir) / REAL_MOUNTS[label])
                       if label in REAL_MOUNTS else Mounts())
@@ -165,7 +157,7 @@ def cmd_real(args) -> int:
             failed += 1
             print(f'{label:48s} not replayed: {err}')
             continue
-        _print_real(label, s, '--config' if given else (name or 'defaults'))
+        _print_real(label, s, '--config' if given else 'defaults')
     print(f'bags and PNGs in {out}')
     if failed:
         print(f'{failed} of {len(bags)} not replayed', file=sys.stderr)
@@ -247,7 +239,7 @@ def _add_replay(sub) -> None:
     r.add_argument('--config', help='YAML config: plain sections, or a ROS 2 parameter file '
                                     '(the entries for the extended_tracker node)')
     r.add_argument('--preset', choices=sorted(PRESETS),
-                   help='named changes from the defaults (leg_height: scanner at leg height)')
+                   help='named changes from the defaults (leg_height: a scanner that sees people only)')
     r.add_argument('--plot', help='write a picture of the run (PNG; .svg, .pdf, ... by '
                                  'the suffix)')
     r.add_argument('--quiet', action='store_true', help='no progress bar')
@@ -281,8 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     real.add_argument('--mounts-dir', default=os.path.join('config', 'mounts'),
                       help='folder of the mounts files of the two-scanner recordings '
                            '(default: %(default)s)')
-    real.add_argument('--config', help='one config for every bag (default: the defaults, '
-                                       'leg_height for the bags recorded at leg height)')
+    real.add_argument('--config', help='one config for every bag (default: the defaults)')
     real.set_defaults(func=cmd_real)
     e = sub.add_parser('evaluate', help='score a replayed bag against simulator truth')
     e.add_argument('output_bag', help='bag written by replay from a simulated bag')

@@ -85,8 +85,8 @@ class DetectionConfig:
 class PartitionConfig:
     """Measurement partitioning and gating."""
 
-    d_min: float = _f(0.1, 'smallest distance threshold of distance partitioning', 'm', 0.0,
-                      10.0)
+    d_min: float = _f(0.45, 'smallest distance threshold of distance partitioning (over the '
+                      'gap between a walker\'s legs)', 'm', 0.0, 10.0)
     d_max: float = _f(0.8, 'largest distance threshold of distance partitioning', 'm', 0.0,
                       20.0, lo_open=True)
     max_partitions: int = _f(40, 'cap on the number of partitions per scan', '', 1, 10000)
@@ -146,13 +146,13 @@ class ReductionConfig:
                             '', 0.0, 10.0)
     split_weight: float = _f(0.4, 'a far component of a label this heavy gets a new label, a '
                              'lighter one is dropped', '', 0.0, 10.0)
-    pair_scans: int = _f(0, 'two labels at most pair_distance apart, one of them part-sized '
+    pair_scans: int = _f(3, 'two labels at most pair_distance apart, one of them part-sized '
                          '(a leg), in this many scans in a row are one object seen as two and '
                          'become one track (0: never)', 'scans', 0, 100000)
     pair_distance: float = _f(0.6, 'how near the centres of a pair stay', 'm', 0.0, 10.0)
     pair_speed: float = _f(2.0, 'how much the velocities of a pair differ at most (one leg '
                            'swings while the other stands)', 'm/s', 0.0, 100.0)
-    pair_semi_axis: float = _f(0.3, 'largest semi-major axis of a part', 'm', 0.0, 10.0)
+    pair_semi_axis: float = _f(0.25, 'largest semi-major axis of a part', 'm', 0.0, 10.0)
 
 
 @dataclass(frozen=True)
@@ -163,7 +163,7 @@ class ExtractionConfig:
     phd_threshold: float = _f(0.5, 'phd mode reports labels heavier than this', '', 0.0, 1.0)
     confirm_scans: int = _f(3, 'scans in a row a label must be extracted before it is reported',
                             '', 1, 1000)
-    confirm_detections: int = _f(2, 'and in how many of those scans returns must have updated '
+    confirm_detections: int = _f(3, 'and in how many of those scans returns must have updated '
                                  'it (its birth scan counts; 0: the scans alone)', '', 0, 1000)
     max_speed: float = _f(15.0, 'a report farther than max_speed times the time since its id '
                           'was last shown (plus jump_slack) is a new object: it gets a new id',
@@ -209,8 +209,7 @@ class ScanConfig:
 class BackgroundConfig:
     """Static background learned per beam for a stationary sensor."""
 
-    enabled: bool = _f(True, 'learn and drop the static background (stationary sensor; a '
-                       'person who never moves from start-up is learned too)')
+    enabled: bool = _f(True, 'learn and drop the static background (doc/model.md 7b)')
     margin: float = _f(0.15, 'a return within this of the background range is background',
                        'm', 0.0, 10.0)
     learn_time: float = _f(2.0, 'time constant of learning a beam background', 's', 0.0, 1e4,
@@ -219,8 +218,13 @@ class BackgroundConfig:
                             0.0, 1e5, lo_open=True)
     confirm_time: float = _f(1.0, 'a beam must return the same range this long to be background',
                              's', 0.0, 1e4)
-    warmup: float = _f(1.5, 'after start-up only learn the background this long',
-                       's', 0.0, 1e4)
+    warmup: float = _f(1.5, 'after start-up only learn the background this long (objects '
+                       'are tracked)', 's', 0.0, 1e4)
+    object_size: float = _f(1.0, 'returns this small that nothing nearer hides are an object '
+                            '(a person, a chair): tracked from start-up (0: none)', 'm', 0.0,
+                            10.0)
+    object_time: float = _f(30.0, 'an object standing still this long is learned (0: never)',
+                            's', 0.0, 1e5)
     track_gate: float = _f(0.5, 'returns this close to a protecting track are never learned',
                            'm', 0.0, 10.0)
     moved_distance: float = _f(0.5, 'a confirmed track protects its returns from being '
@@ -412,29 +416,14 @@ def from_flat(flat: dict[str, Any]) -> TrackerConfig:
 # Named sets of changes from the defaults, for installations the defaults do not fit.
 # ``config/<name>.yaml`` is generated from these (``make config``); a test keeps them equal.
 PRESETS: dict[str, dict] = {
-    # A scanner at leg height (~0.2-0.4 m) sees each walker as two leg clusters up to about
-    # 0.4 m apart. With d_min under that gap every distance partition offers the legs as two
-    # cells, and two tight leg tracks explain them better than one person: each walker
-    # became two ids. d_min 0.45 keeps a person's legs in one cell (sub-partitioning
-    # still splits a cell that predicted objects say holds two people). A larger
-    # sigma_accel (5) followed the legs' jumping centroid but let coasting tracks grow
-    # metres of position uncertainty and claim newcomers far away: left at the default.
-    # Such a scanner sees people only, so an id may move at walking speed, not a car's:
-    # max_speed 3 m/s gives a new id where a coasting track took over a newcomer 4-9 m
-    # away (leg_tracker positive_1 and demo recordings).
-    # The legs of a walker tracked one by one stay two ids side by side: pair_scans 3
-    # makes one track of two labels that stay together, one of them leg-sized, for 3
-    # scans (the confirmation's count, so a leg born beside its walker is joined before
-    # it is shown).
-    # At leg height stray returns look like legs (chair and table legs, a wall's edge
-    # half hidden): a label born from one of them and updated in two scans out of three
-    # was shown for 1-14 scans and wandered onto the people near it. confirm_detections 3
-    # (returns in three scans before an id is shown) took the leg_tracker demo from 37
-    # ids to 18, joined two ids of one walker there into one, and left obstacle_detector
-    # with its one moving object.
-    'leg_height': {'partition': {'d_min': 0.45},
-                   'extraction': {'max_speed': 3.0, 'confirm_detections': 3},
-                   'reduction': {'pair_scans': 3}},
+    # The defaults serve a scanner at any height: leg pairs are joined (pair_scans,
+    # pair_semi_axis), the legs are offered as one cell (d_min), and an id is shown only
+    # after returns in three scans (confirm_detections), which keeps stray leg-sized returns
+    # (chair legs, a half-hidden wall edge) from being shown. What is left for a scanner at
+    # leg height is that it sees people only: an id moves at walking speed, not a car's,
+    # and max_speed 3 m/s gives a new id where a coasting track would take over a newcomer
+    # 4-9 m away (leg_tracker positive_1 and demo recordings).
+    'leg_height': {'extraction': {'max_speed': 3.0}},
 }
 
 

@@ -24,6 +24,7 @@ from .sensing.background import BackgroundState, beams_near_tracks, update_backg
 from .sensing.detection import (
     detection_model, pair_detection_probability, sparse_births, Visibility,
 )
+from .sensing.objects import object_beams
 from .sensing.scan import ScanPoints
 from .sensing.static_map import StaticMap, update_static_map
 from .tracks.manage import manage_tracks
@@ -82,22 +83,23 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
                                       guard)
     # the per-beam background ages by its own scanner's period (several scanners take
     # turns: the time since the last scan is another's)
+    objects, small = object_beams(sp, bgc.object_size, bgc.margin, cfg.birth.min_points)
     background, keep = update_background(state.background, sp, dt if own_dt is None else own_dt,
-                                         bgc, protect, near)
+                                         bgc, protect, near, objects)
     learned = background.learned[sp.beam]
     static_map = state.static_map
     if pose is not None and state.moving:
         if static_map is None:    # it starts to move: seeded with what the background knew
             static_map = StaticMap.seeded(pose, sp, ~keep, bgc)
         static_map, on_map, map_learned = update_static_map(static_map, sp, pose, dt, bgc,
-                                                            protect)
+                                                            protect | objects)
         keep &= ~on_map
         learned |= map_learned
     diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
-    points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
-    if state.elapsed + dt <= bgc.warmup:
+    if state.elapsed + dt <= bgc.warmup:      # walls are learned, what is small is tracked
         diag.warmup = 1
-        bg_points, points = np.vstack([bg_points, points]), empty
+        keep &= small[sp.beam]
+    points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
     return Foreground(background, static_map, points, bg_points,
                       view.to_outer(sp.points[learned]), moved)
 

@@ -16,6 +16,11 @@ from extended_tracker.tracks.record import TrackRecord
 from mixtures import estimates
 
 
+# objects off: the per-beam rules alone, which learn whatever stands still (an object,
+# at most background.object_size, is learned only after object_time: test_kinds.py)
+NO_OBJECTS = {'background': {'object_size': 0.0}}
+
+
 def run(scene, duration, cfg, seed=0):
     state = PipelineState.initial(cfg)
     out = []
@@ -186,9 +191,10 @@ def test_person_who_stops_in_open_space_keeps_one_id():
 
 
 def test_object_that_appears_and_never_moves_in_open_space_is_learned():
-    """The contrast: a track that never moved protects nothing on free beams."""
+    """The contrast: a track that never moved protects nothing on free beams (objects
+    off; with them the box is tracked for object_time first)."""
     box = SimObject((5.0, 1.0), a=0.3, b=0.3, t_start=3.0, kind='box')
-    hist = run(Scene((box,), laser=LaserSpec()), 10.0, from_dict({}), seed=4)
+    hist = run(Scene((box,), laser=LaserSpec()), 10.0, from_dict(NO_OBJECTS), seed=4)
     assert all(len(res.estimates) == 0 for _, res in hist[60:]), \
         [len(res.estimates) for _, res in hist[30:]]
     assert all(res.diagnostics['background_dropped'] > 0 for _, res in hist[60:])
@@ -212,14 +218,15 @@ def test_travel_that_protects_counts_only_scans_with_returns():
     assert state.reported_scans[0] == 11 and state.reported_hits[0] == 1
     scans_alone = from_dict({'extraction': {'confirm_detections': 0}}).extraction
     assert state.confirmed_travel(np.array([7, 8]), scans_alone).tolist() == [0.0, -1.0]
-    # by default returns must have updated it in two of its scans: one is not enough
-    assert state.confirmed_travel(np.array([7]), from_dict({}).extraction).tolist() == [-1.0]
+    # returns must have updated it in confirm_detections of its scans: one is not enough
+    two = from_dict({'extraction': {'confirm_detections': 2}}).extraction
+    assert state.confirmed_travel(np.array([7]), two).tolist() == [-1.0]
     state = _report(state, 1.2, 3)                        # seen again 1.2 m away
-    assert np.allclose(state.confirmed_travel(np.array([7]), from_dict({}).extraction), 1.2)
+    assert np.allclose(state.confirmed_travel(np.array([7]), two), 1.2)
     not_yet = from_dict({'extraction': {'confirm_scans': 13}}).extraction
     assert state.confirmed_travel(np.array([7]), not_yet).tolist() == [-1.0]  # not 13 in a row
     state = _report(state, 0.3, 3)                        # and back: the farthest counts
-    assert np.allclose(state.confirmed_travel(np.array([7]), from_dict({}).extraction), 1.2)
+    assert np.allclose(state.confirmed_travel(np.array([7]), two), 1.2)
 
 
 def test_travel_is_counted_beyond_the_first_extent():
@@ -326,11 +333,11 @@ def test_something_that_flickers_in_open_space_is_learned_not_kept_by_its_own_tr
     A small static object in open space that returns in 60 % of scans (dark, at the edge
     of range): its beams go free while it is silent, a track forms on it, and that track
     has not moved, so it protects nothing there and the object is learned. (With any
-    confirmed track protecting free beams, the track kept itself alive.)
+    confirmed track protecting free beams, the track kept itself alive.) Objects off.
     """
     box = SimObject((8.6, 1.0), a=0.25, b=0.2, t_start=2.0, kind='box')
     rng = np.random.default_rng(11)
-    cfg = from_dict({})
+    cfg = from_dict(NO_OBJECTS)
     state = PipelineState.initial(cfg)
     tracked = []
     for k, (scan, truth) in enumerate(simulate(Scene((box,), laser=LaserSpec()), 12.0,
@@ -406,9 +413,9 @@ def test_static_object_revealed_behind_a_learned_one_is_learned_and_its_track_dr
     box 3.5 m away (the MiR recording's furniture behind what stood by the robot). The box
     is tracked as a new static object, then learned as background about confirm_time
     after it appeared; its track is dropped in that scan (``absorbed``) instead of
-    coasting, and nothing is reported from 6.5 s on.
+    coasting, and nothing is reported from 6.5 s on (objects off).
     """
-    hist = run(chair_reveals_box(), 9.0, from_dict({}), seed=5)
+    hist = run(chair_reveals_box(), 9.0, from_dict(NO_OBJECTS), seed=5)
     shown = [k for k, (_, res) in enumerate(hist)
              if len(res.estimates) and np.linalg.norm(res.estimates.m[:, :2] - (3.5, 0.0),
                                                       axis=1).min() < 0.5]
@@ -429,10 +436,11 @@ def test_static_object_in_front_of_the_wall_is_learned_after_forget_time_though_
     A box put down 4 m away in front of the wall at 3 s is tracked, and learned as
     background once its returns add up to forget_time (3 s here): a track that never
     moved protects nothing (a chair moved in). The person who walks in and stops for
-    6 s in front of the same wall is held by its moving track and stays tracked.
+    6 s in front of the same wall is held by its moving track and stays tracked (objects
+    off).
     """
     wall = (((8.0, -5.0), (8.0, 5.0)),)
-    cfg = from_dict({'background': {'forget_time': 3.0}})
+    cfg = from_dict({'background': {'forget_time': 3.0, 'object_size': 0.0}})
     box = SimObject((4.0, 1.0), a=0.3, b=0.3, kind='box', t_start=3.0)
     hist = run(Scene((box,), walls=wall, laser=LaserSpec()), 9.0, cfg, seed=7)
     counts = [len(res.estimates) for _, res in hist]
@@ -813,9 +821,10 @@ def test_the_region_birth_of_a_scan_is_never_absorbed():
     """
     A birth region on the box that the chair reveals: in the scans where the box's beams
     are learned and its tracks absorbed, the region's birth of that very scan is not among
-    them (it is no track that stood on those returns), and is in the posterior.
+    them (it is no track that stood on those returns), and is in the posterior (objects
+    off).
     """
-    cfg = from_dict({'birth': {'regions': [3.5, 0.0, 0.3]}})
+    cfg = from_dict({'birth': {'regions': [3.5, 0.0, 0.3]}, **NO_OBJECTS})
     state = PipelineState.initial(cfg)
     absorbed = 0
     for scan, _ in simulate(chair_reveals_box(), 6.0, seed=5):

@@ -1,6 +1,6 @@
 """
 A walker's two legs tracked as two labels become one track (``reduction.pair_scans``,
-on in the ``leg_height`` preset); two objects that only pass each other stay two.
+on by default); two objects that only pass each other stay two.
 
 The joined component is checked against sampling (its centre, extent and kinematic
 covariance are moments of the two parts), the thinned cardinality pmf against
@@ -26,7 +26,7 @@ from mixtures import with_fields
 
 def leg_config(pair_scans, mode='cphd'):
     legs = {k: dict(v) for k, v in PRESETS['leg_height'].items()}
-    legs['reduction']['pair_scans'] = pair_scans
+    legs.setdefault('reduction', {})['pair_scans'] = pair_scans
     legs['model'] = {'mode': mode}
     return from_dict(legs)
 
@@ -171,8 +171,8 @@ def test_a_leg_born_beside_its_walker_is_never_shown(pair_scans):
     log_card[1] = 0.0
     state = with_fields(state, mixture=mix, log_card=log_card, reported=np.array([3]),
                     reported_scans=np.array([40]), reported_hits=np.array([40]),
-                    reported_origin=np.array([[2.0, 0.175]]), reported_travel=np.zeros(1),
-                    reported_size=np.zeros(1))
+                    reported_origin=np.array([[2.0, 0.175]]),
+                    reported_travel=np.full(1, 4.0), reported_size=np.zeros(1))
     seen = set()
     for k in range(30):
         state, est, _ = filter_step(state, legs(rng, 0.1 * (k + 1), (2.0, 0.0), (1.0, 0.0)),
@@ -304,7 +304,8 @@ def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
 
     cfg = leg_config(3)
     filt = FilterState.initial(cfg)
-    record = TrackRecord(reported=np.array([3, 5, 7]), reported_scans=np.array([9, 9, 9]))
+    record = TrackRecord(reported=np.array([3, 5, 7]), reported_scans=np.array([9, 9, 9]),
+                         reported_travel=np.zeros(3))
     forming = [join_pairs(filt, record, _parts([3, 5], [0.0, 0.4], semis), cfg)[1].pairs.tolist()
                for semis in ((0.45, 0.1), (0.45, 0.45))]
     assert forming == [[[3, 5]], []]

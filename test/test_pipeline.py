@@ -258,13 +258,24 @@ def test_the_warm_up_lasts_background_warmup_seconds_of_scans(warmup):
     so far is at most background.warmup: 10 scans at 10 Hz for 1.05 s, 15 for 1.55 s;
     the next scan tracks. (Off the scan grid: the time so far adds up 0.1 s steps, whose
     rounding takes 15 of them past 1.5.)"""
+    from extended_tracker.sensing.objects import object_beams
+    from extended_tracker.sensing.scan import scan_to_points
+
     cfg = from_dict({'background': {'enabled': True, 'warmup': warmup}})
     results = step_results(cfg, 25)
     flags = [res.diagnostics['warmup'] for res in results]
     n = int(warmup * 10)
     assert flags == [1] * n + [0] * (25 - n)
-    # meanwhile every return is reported as background, none as a detection
-    for res in results[:n]:
+    # meanwhile the returns of groups at most object_size across are detections (a person
+    # standing there from start-up), every other return is background
+    for res, scan in zip(results[:n], scans(n)):
+        sp = scan_to_points(scan)
+        small = object_beams(sp, cfg.background.object_size, cfg.background.margin)[1]
+        np.testing.assert_array_equal(res.points, sp.points[small[sp.beam]])
+        assert len(res.background_points) + len(res.points) == res.diagnostics['detections']
+    # with objects off, every return is background
+    cfg = from_dict({'background': {'warmup': warmup, 'object_size': 0.0}})
+    for res in step_results(cfg, n):
         assert len(res.points) == 0
         assert len(res.background_points) == res.diagnostics['detections'] > 0
 

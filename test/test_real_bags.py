@@ -8,7 +8,7 @@ import pytest
 from extended_tracker.bag.bagio import open_scans
 from extended_tracker.bag.replay import replay, ros2_frame_id
 from extended_tracker.bag.scanners import load_mounts, Mounts
-from extended_tracker.cli import load_config, REAL_MOUNTS, REAL_PRESETS, REAL_TOPICS
+from extended_tracker.cli import load_config, REAL_MOUNTS, REAL_TOPICS
 from extended_tracker.pipeline import PipelineState, step
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,13 +23,12 @@ pytestmark = [pytest.mark.slow,
 @pytest.mark.parametrize('name', sorted(GOLDEN['recordings']))
 def test_a_real_recording_gives_its_figures(name, tmp_path):
     """Scans, detections per scan, ids, moving ids and mean count of one recording, as
-    `extended-tracker real` replays it (its preset, topic and mounts)."""
+    `extended-tracker real` replays it (the defaults, its topic and mounts)."""
     want = GOLDEN['recordings'][name]
-    preset = REAL_PRESETS.get(name)
-    assert (preset or 'defaults') == want['config']
+    assert want['config'] == 'defaults'
     mounts = (load_mounts(ROOT / 'config' / 'mounts' / REAL_MOUNTS[name])
               if name in REAL_MOUNTS else Mounts())
-    s = replay(REAL / name, tmp_path / name, load_config(None, preset), REAL_TOPICS.get(name),
+    s = replay(REAL / name, tmp_path / name, load_config(None), REAL_TOPICS.get(name),
                progress=False, mounts=mounts)
     assert (s.scans, s.distinct_ids, s.moving_ids) == (want['scans'], want['ids'],
                                                         want['moving'])

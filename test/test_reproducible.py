@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from extended_tracker.bag.replay import replay_results
-from extended_tracker.cli import load_config, REAL_PRESETS, REAL_TOPICS
+from extended_tracker.cli import load_config, REAL_TOPICS
 from extended_tracker.filter.mixture import Mixture
 
 from lastbit import assert_same_tracks, other_cpu
@@ -45,7 +45,7 @@ def test_weights_equal_but_for_rounding_order_by_index():
 
 
 def _replay(name, scans):
-    cfg = load_config(None, REAL_PRESETS.get(name))
+    cfg = load_config(None)
     return [(res.estimates.label.tolist(), res.estimates.m.copy()) for _, res in
             itertools.islice(replay_results(REAL / name, cfg, REAL_TOPICS.get(name)), scans)]
 

@@ -92,6 +92,8 @@ class BackgroundState:
     second_ago: np.ndarray            # time since a return matched the second range
     candidate2: np.ndarray            # the beam's other recent range (NaN: none)
     candidate2_age: np.ndarray
+    object_seen: np.ndarray           # an object returned the first candidate (bool)
+    object_seen2: np.ndarray          # an object returned the other candidate (bool)
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
@@ -100,7 +102,8 @@ class BackgroundState:
         return BackgroundState(scan.angles.copy(), np.full(b, np.nan), np.full(b, np.nan),
                                np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool),
                                np.zeros(b, dtype=bool), never, np.full(b, np.nan), never,
-                               np.full(b, np.nan), np.zeros(b))
+                               np.full(b, np.nan), np.zeros(b), np.zeros(b, dtype=bool),
+                               np.zeros(b, dtype=bool))
 
     def matches(self, scan: ScanPoints) -> bool:
         return (len(self.angles) == len(scan.angles)
@@ -262,8 +265,8 @@ def _runs(r, which, reach_one, margin, wrap=False):
 
 
 def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float, cfg,
-                      protected: np.ndarray, tracked: np.ndarray | None = None
-                      ) -> tuple[BackgroundState, np.ndarray]:
+                      protected: np.ndarray, tracked: np.ndarray | None = None,
+                      objects: np.ndarray | None = None) -> tuple[BackgroundState, np.ndarray]:
     """
     Learn from one scan and return the new state and a keep-mask over ``scan.points``.
 
@@ -291,8 +294,11 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
     with np.errstate(invalid='ignore'):
         seen = _refine_known(state, r, dt, cfg)
         learn = seen.returned & ~seen.is_bg & ~(protected & (seen.known | seen.free))
-        c, c2, age, age2 = _candidates(state, scan, dt, cfg, learn, seen)
-        promote, second = _promotions(scan, cfg, learn, seen, c, age, tracked)
+        c, c2, age, age2, was_object, was_object2 = _candidates(state, scan, dt, cfg, learn,
+                                                                 seen)
+        if objects is not None:
+            was_object |= objects & learn
+        promote, second = _promotions(scan, cfg, learn, seen, c, age, tracked, was_object)
         b = np.where(promote, c, seen.b)
         b_ago = np.where(promote, 0.0, seen.b_ago)
         s2 = np.where(second, c, np.where(seen.s2_ago > cfg.forget_time, np.nan, seen.s2))
@@ -301,7 +307,7 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         age = np.where(learned, 0.0, age)
     keep = ~(seen.is_bg | learned)[scan.beam]
     return BackgroundState(state.angles, b, c, age, seen.empty, seen.free, learned, b_ago, s2,
-                           s2_ago, c2, age2), keep
+                           s2_ago, c2, age2, was_object & ~learned, was_object2), keep
 
 
 @dataclass(frozen=True)
@@ -347,18 +353,22 @@ def _candidates(state: BackgroundState, scan: ScanPoints, dt: float, cfg, learn,
     """
     The beam's two latest ranges, each ageing by a scan period whenever it is returned
     (or a neighbour returns it); the one returned this scan is put first, a new range
-    pushes the first to second place. Returns ``(c, c2, age, age2)``.
+    pushes the first to second place. Each keeps whether an object returned it. Returns
+    ``(c, c2, age, age2, object_seen, object_seen2)``.
     """
     r, margin = scan.ranges, cfg.margin
     c, age = state.candidate, state.candidate_age
     c2, age2 = state.candidate2, state.candidate2_age
+    ob, ob2 = state.object_seen, state.object_seen2
     on_c = np.abs(r - c) <= margin
     on_c2 = learn & ~on_c & (np.abs(r - c2) <= margin)
     c, c2 = np.where(on_c2, c2, c), np.where(on_c2, c, c2)
     age, age2 = np.where(on_c2, age2, age), np.where(on_c2, age, age2)
+    ob, ob2 = np.where(on_c2, ob2, ob), np.where(on_c2, ob, ob2)
     same = learn & (on_c | on_c2)
     fresh = learn & ~same
     c2, age2 = np.where(fresh, c, c2), np.where(fresh, age, age2)
+    ob, ob2 = ob & ~fresh, np.where(fresh, ob, ob2)
     # ages count scans' dt with a little slack so that k scans of dt reach k * dt
     age = np.where(same, age + dt, np.where(fresh, 0.0, age))
     c = np.where(same, c + seen.gain * (r - c), np.where(fresh, r, c))
@@ -369,10 +379,10 @@ def _candidates(state: BackgroundState, scan: ScanPoints, dt: float, cfg, learn,
     idle = ~seen.returned | seen.is_bg
     age = np.where(_neighbour_returned(c, r, learn, idle, reach, margin, scan.full_turn),
                    age + dt, age)
-    return c, c2, age, age2
+    return c, c2, age, age2, ob, ob2
 
 
-def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked):
+def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked, objects=None):
     """
     Which candidates become the background, and which the second range.
 
@@ -382,7 +392,8 @@ def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked):
     ``confirm_time`` means the beam flips between it and the candidate (an object's edge,
     a thin post): the candidate is a second range. A beam hidden before it was learned
     (no background, never seen free) that returns the range of a neighbour's background
-    continues that surface and is learned at once (not near a track).
+    continues that surface and is learned at once (not near a track). An object's beam
+    (``objects``) is ripe, and promoted whatever it is, once returned for ``object_time``.
     """
     r, b, margin = scan.ranges, seen.b, cfg.margin
     reach = reach_of(scan.angle_step, margin)
@@ -403,4 +414,8 @@ def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked):
         hidden = continues_surface(r, b, hidden, reach, margin, wrap)
     promote = learn & ((farther & ripe & ~lately) | (nearer & (long | thin))) | hidden
     second = learn & ripe & lately & ~promote
+    if objects is not None and objects.any():
+        due = age >= cfg.object_time - 1e-6 if cfg.object_time > 0 else np.zeros_like(learn)
+        promote = np.where(objects, learn & due, promote)
+        second &= ~objects
     return promote, second

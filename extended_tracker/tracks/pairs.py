@@ -14,6 +14,8 @@ from ..filter.state import FilterState
 from .estimates import Estimates
 from .record import NO_LABELS, TrackRecord
 
+SETTLED_SCANS = 20     # a label shown this many scans in a row that has not moved is settled
+
 
 def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: TrackerConfig):
     """
@@ -23,7 +25,11 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
     Two extracted labels are a candidate pair when one of them is part-sized (semi-major
     axis at most ``reduction.pair_semi_axis``), their centres are within
     ``reduction.pair_distance`` and their velocities differ by at most
-    ``reduction.pair_speed`` (nearest pairs first, one to one). A pair that has been one
+    ``reduction.pair_speed`` (nearest pairs first, one to one), and both or neither are
+    *settled* (shown ``SETTLED_SCANS`` scans in a row without moving
+    ``background.moved_distance``): a walker passing a chair, a post or a person standing
+    still is no pair with it, though one of a walker's legs stands while the other swings.
+    A pair that has been one
     in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
     heaviest components become one (:func:`join_parts`) under the senior label (reported
     in more scans in a row; then the smaller label) and the other label's components are
@@ -60,7 +66,10 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
         d = est.m[i, :2] - est.m[j, :2]
         dv = est.m[i, 2:] - est.m[j, 2:]
         d2 = np.sum(d * d, axis=1)
+        settled = ((record.reported_scans >= SETTLED_SCANS)
+                   & (record.reported_travel < cfg.background.moved_distance))
         ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
+              & (settled[i] == settled[j])
               & (d2 <= rc.pair_distance ** 2)
               & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
         taken, rows = set(), []
