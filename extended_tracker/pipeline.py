@@ -41,7 +41,7 @@ from .config import TrackerConfig
 from .diagnostics import Diagnostics
 from .errors import ScanError
 from .filter.state import FilterState, predict_state
-from .frames.motion import frame_jump
+from .frames.motion import frame_jump, scan_period
 from .frames.pose import Placement, Pose2
 from .scanners import anchored, mount_check, seen_elsewhere, silenced, View, with_scanner
 from .sensing.background import BackgroundState
@@ -49,6 +49,7 @@ from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
 from .sensing.static_map import StaticMap
 from .stages import detect, drop_absorbed, remove_background, update_tracks
 from .tracks.estimates import Estimates
+from .tracks.kinds import TrackKinds
 from .tracks.record import TrackRecord
 from .tracks.times import TrackTimes
 
@@ -86,8 +87,9 @@ class PipelineState:
         learned.
     moving : bool
         The scanner has moved in the fixed frame: the static map drops returns.
-    times : TrackTimes
-        When each shown id was first shown and last updated by returns.
+    times, kinds : TrackTimes, TrackKinds
+        When each shown id was first shown and last updated by returns; what each is
+        (motion and class history, :mod:`tracks.kinds`).
     scanner : str or None
         The frame of the scanner ``background``, ``anchor`` and ``pose`` belong to (the
         last scan's); ``others`` holds those of the other scanners placed in the fixed
@@ -111,6 +113,7 @@ class PipelineState:
     anchor: Pose2 | None = None
     moving: bool = False
     times: TrackTimes = field(default_factory=TrackTimes)
+    kinds: TrackKinds = field(default_factory=TrackKinds)
     scanner: str | None = None
     others: dict = field(default_factory=dict)
     view: View | None = None
@@ -154,6 +157,8 @@ class StepResult:
         updated it (0 in a scan that updated it).
     scanner : str or None
         The frame of the scanner that took the scan (when placed in a fixed frame).
+    motion, kind, kind_confidence : (k,) arrays
+        Of each estimate: its motion state, class guess and how sure (:mod:`tracks.kinds`).
 
     """
 
@@ -172,13 +177,16 @@ class StepResult:
     age: np.ndarray | None = None
     since_detected: np.ndarray | None = None
     scanner: str | None = None
+    motion: np.ndarray | None = None
+    kind: np.ndarray | None = None
+    kind_confidence: np.ndarray | None = None
 
     def __post_init__(self):
-        # a result made by hand (a test, a tool) without the times: none known, 0
-        if self.age is None:
-            self.age = np.zeros(len(self.estimates))
-        if self.since_detected is None:
-            self.since_detected = np.zeros(len(self.estimates))
+        # a result made by hand (a test, a tool) without the times and kinds: none known, 0
+        for name in ('age', 'since_detected', 'motion', 'kind', 'kind_confidence'):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(len(self.estimates),
+                                             np.uint8 if name in ('motion', 'kind') else float))
 
 
 def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None = None,
@@ -226,12 +234,13 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
         event, error = _with_event(event, error, 'unexplained_scan',
                                    _unexplained(len(fg.points), cfg))
     times = state.times.updated(estimates, scan_in.stamp_ns)
+    kinds = state.kinds.updated(estimates, dt, fg.moved, tracks.pairs.ravel())
     new_state = replace(state, filter=filt, tracks=tracks,
                         background=None if leaving else fg.background,
                         static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
                         frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
                         scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
-                        times=times, view=pose and View(pose, sp.angle_lo, sp.angle_hi,
+                        times=times, kinds=kinds, view=pose and View(pose, sp.angle_lo, sp.angle_hi,
                                                         sp.range_max, sp.full_turn))
     new_state, mismatch = mount_check(new_state)
     if mismatch:
@@ -241,7 +250,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                                  fg.points, fg.background_points, diag, event, error,
                                  time.perf_counter() - t0, pose,
                                  *times.of(estimates, scan_in.stamp_ns),
-                                 state.scanner if pose is not None else None)
+                                 state.scanner if pose is not None else None,
+                                 *kinds.of(estimates))
 
 
 @dataclass(frozen=True)
@@ -308,30 +318,6 @@ def _accept(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns, t0,
     return _Accepted(sp, now, frame, dt, filt, tracks, event, error, state, own_dt)
 
 
-def scan_period(last_ns: int | None, now_ns: int, cfg: TrackerConfig):
-    """
-    ``(dt, event, error)`` of a scan at ``now_ns`` after one at ``last_ns``.
-
-    The first scan takes ``timing.default_dt``. A stamp earlier than the previous one (a
-    bag looping, a clock jump) is event ``time_backwards``, a gap longer than
-    ``timing.max_gap`` event ``time_gap``: the tracks restart and the scan takes
-    ``timing.default_dt``.
-    """
-    default = cfg.timing.default_dt
-    if last_ns is None:
-        return default, None, None
-    if now_ns < last_ns:
-        return default, 'time_backwards', (
-            f'stamp {(last_ns - now_ns) * 1e-9:.3f} s before the previous scan\'s (a bag '
-            f'that looped, or a clock jump?): tracks restarted')
-    dt = (now_ns - last_ns) * 1e-9
-    if dt > cfg.timing.max_gap:
-        return default, 'time_gap', (
-            f'{dt:.3f} s since the previous scan, over timing.max_gap '
-            f'({cfg.timing.max_gap:g} s): tracks restarted')
-    return dt, None, None
-
-
 def _scan_counts(sp: ScanPoints) -> Diagnostics:
     """A scan's diagnostics with its beams, masked beams and valid returns counted."""
     diag = Diagnostics(detections=len(sp.points), beams=len(sp.angles))
@@ -381,7 +367,8 @@ def _repeat(state, scan_stamp, frame, event, error, t0):
     card, mean = _card_of(state)
     return StepResult(scan_stamp, frame, state.last_estimates, card, mean, np.zeros((0, 2)),
                       np.zeros((0, 2)), Diagnostics(), event, error, time.perf_counter() - t0,
-                      None, *state.times.of(state.last_estimates, scan_stamp))
+                      None, *state.times.of(state.last_estimates, scan_stamp), None,
+                      *state.kinds.of(state.last_estimates))
 
 
 def held(state: PipelineState, scan, event: str, error: str,

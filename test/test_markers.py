@@ -102,7 +102,9 @@ def test_the_messages_carry_every_field_of_the_estimates():
     cfg = TrackerConfig()
     res = StepResult(1_700_000_000_123_456_789, 'laser', est, np.array([0.1, 0.2, 0.7]), 2.6,
                      np.zeros((0, 2)), np.zeros((0, 2)), {'detections': 57, 'cells': 12},
-                     processing_time=0.0042)
+                     processing_time=0.0042, motion=np.array([1, 0, 2], np.uint8),
+                     kind=np.array([1, 3, 2], np.uint8),
+                     kind_confidence=np.array([0.8, 0.7, 0.6]))
     msg = tracks_data(res, cfg)
     assert msg['header'] == {'stamp': {'sec': 1_700_000_000, 'nanosec': 123_456_789},
                              'frame_id': 'laser'}
@@ -121,13 +123,15 @@ def test_the_messages_carry_every_field_of_the_estimates():
         assert o['width'] == pytest.approx(math.sqrt(3) * b)
         assert o['measurement_rate'] == est.rate[j]
         assert o['num_detections'] == est.num_detections[j]
+        assert (o['motion'], o['object_class'], o['class_confidence']) == (
+            res.motion[j], res.kind[j], res.kind_confidence[j])
     assert [o['visibility'] for o in msg['objects']] == [1.0, 0.4, 0.0]
 
     data, _ = markers_data(res, cfg)
     by = {(mk['ns'], mk['id']): mk for mk in data['markers']}
     for j, (lab, x, y, *_) in enumerate(rows):
         text, arrow = by['label', lab], by['velocity', lab]
-        assert text['text'] == str(lab) and text['scale']['z'] > 0      # a visible height
+        assert text['scale']['z'] > 0                                  # a visible height
         assert text['pose'] == {'position': {'x': x, 'y': y, 'z': 0.5},
                                 'orientation': {'x': 0.0, 'y': 0.0, 'z': 0.0, 'w': 1.0}}
         # the arrow spans one second of motion from the centre
@@ -137,6 +141,9 @@ def test_the_messages_carry_every_field_of_the_estimates():
         assert by['outline', lab]['scale']['x'] > 0      # a line strip's width: visible
         assert by['outline', lab]['color'] == text['color'] == arrow['color']
         assert text['color']['a'] == 1.0
+    # the text: id, class guess and how sure, motion state
+    assert [by['label', r[0]]['text'] for r in rows] == [
+        '7 person 0.8\nmoving', '12 static 0.7\nnever moved', '30 vehicle 0.6\npaused']
     # each id its own colour, over the first hundred ids
     colours = {tuple(id_rgba(lab).values()) for lab in range(1, 101)}
     assert len(colours) == 100

@@ -937,8 +937,11 @@ def test_the_summary_is_made_of_the_results_it_replays(tmp_path, monkeypatch):
         for label, path in added.items():
             if len(seen) in path:
                 res.estimates = with_object(res.estimates, label, path[len(seen)])
-                res.age, res.since_detected = (np.append(a, 0.0) for a in
-                                               (res.age, res.since_detected))
+                res.age, res.since_detected, res.kind_confidence = (
+                    np.append(a, 0.0) for a in (res.age, res.since_detected,
+                                                res.kind_confidence))
+                res.motion, res.kind = (np.append(a, 0).astype(np.uint8)
+                                        for a in (res.motion, res.kind))
         return state, res
 
     monkeypatch.setattr(rp, 'step', step)

@@ -1,6 +1,7 @@
 """
-How the scanner moved in the fixed frame between two scans: a jump of the frame itself
-(a localisation reset) is no motion to carry tracks across.
+How time went and how the scanner moved between two scans: a step back in time, a gap,
+or a jump of the fixed frame itself (a localisation reset) is no motion to carry tracks
+across.
 """
 
 from __future__ import annotations
@@ -31,4 +32,28 @@ def frame_jump(last: Pose2 | None, pose: Pose2, dt: float, cfg):
     return None, None
 
 
-__all__ = ['frame_jump', 'MIN_JUMP']
+def scan_period(last_ns: int | None, now_ns: int, cfg):
+    """
+    ``(dt, event, error)`` of a scan at ``now_ns`` after one at ``last_ns``.
+
+    The first scan takes ``timing.default_dt``. A stamp earlier than the previous one (a
+    bag looping, a clock jump) is event ``time_backwards``, a gap longer than
+    ``timing.max_gap`` event ``time_gap``: the tracks restart and the scan takes
+    ``timing.default_dt``.
+    """
+    default = cfg.timing.default_dt
+    if last_ns is None:
+        return default, None, None
+    if now_ns < last_ns:
+        return default, 'time_backwards', (
+            f'stamp {(last_ns - now_ns) * 1e-9:.3f} s before the previous scan\'s (a bag '
+            f'that looped, or a clock jump?): tracks restarted')
+    dt = (now_ns - last_ns) * 1e-9
+    if dt > cfg.timing.max_gap:
+        return default, 'time_gap', (
+            f'{dt:.3f} s since the previous scan, over timing.max_gap '
+            f'({cfg.timing.max_gap:g} s): tracks restarted')
+    return dt, None, None
+
+
+__all__ = ['frame_jump', 'MIN_JUMP', 'scan_period']

@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from ..tracks.kinds import CLASS_NAMES, MOTION_NAMES
+
 SHAPE_ELLIPSE = 0
 SHAPE_RECTANGLE = 1
 # visualization_msgs/Marker constants
@@ -74,6 +76,9 @@ def tracks_data(result, cfg) -> dict:
             'visibility': float(np.clip(e.visibility[j], 0.0, 1.0)),
             'age': float(result.age[j]),
             'time_since_detected': float(result.since_detected[j]),
+            'motion': int(result.motion[j]),
+            'object_class': int(result.kind[j]),
+            'class_confidence': float(result.kind_confidence[j]),
         })
     return {
         'header': header_data(result.stamp_ns, result.frame_id),
@@ -135,12 +140,18 @@ def outline_points(centre, major: float, minor: float, yaw: float, rectangle: bo
             for x, y in outline_xy(centre, major, minor, yaw, rectangle).tolist()]
 
 
+def label_text(label: int, kind: int, confidence: float, motion: int) -> str:
+    """An object's marker text: ``'7 person 0.8\nmoving'``."""
+    return f'{label} {CLASS_NAMES[kind]} {confidence:.1f}\n{MOTION_NAMES[motion]}'
+
+
 def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
     """
     ``MarkerArray`` of one step result, and the ids it shows.
 
     Per object: its outline (ellipse, or rectangle when ``shape`` says so), a text label
-    with the id, a velocity arrow; colours fixed per id. Markers of ids shown before and
+    with the id, its class guess and how sure, and its motion state (:func:`label_text`),
+    a velocity arrow; colours fixed per id. Markers of ids shown before and
     gone now are deleted (``DELETE`` in each namespace), so RViz keeps no stale ghosts;
     each lives ``extraction.marker_lifetime`` so a stream that stops leaves none either.
     """
@@ -161,7 +172,9 @@ def markers_data(result, cfg, previous_ids=()) -> tuple[dict, set]:
                                points=outline_points(c, major[j], minor[j], yaw[j],
                                                      shape[j] == SHAPE_RECTANGLE)))
         markers.append(_marker(header, 'label', lab, TEXT_VIEW_FACING, ADD, lifetime=life,
-                               pose=_pose(c[0], c[1], 0.5), text=str(lab),
+                               pose=_pose(c[0], c[1], 0.5),
+                               text=label_text(lab, result.kind[j], result.kind_confidence[j],
+                                               result.motion[j]),
                                scale={'x': 0.0, 'y': 0.0, 'z': 0.3}, color=col))
         tip = c + e.m[j, 2:4]
         markers.append(_marker(header, 'velocity', lab, ARROW, ADD, lifetime=life,
