@@ -320,13 +320,15 @@ def test_results_go_between_the_readme_markers_and_nowhere_else(tmp_path, monkey
 
     monkeypatch.setattr(ev, 'results_table', lambda: '| the table |')
     monkeypatch.setattr(ev, 'scenario_notes', lambda: '- the notes')
+    monkeypatch.setattr(ev, 'counting_table', lambda: '| the count |')
     readme = tmp_path / 'README.md'
     head, tail = '# x\n\nbefore\n', '\nafter <!-- not a marker -->\n'
     readme.write_text(head + '<!-- results:begin -->\nold\n<!-- results:end -->' + tail)
     assert main(['results', '--readme', str(readme)]) == 0
     text = readme.read_text()
     assert text.startswith(head + '<!-- results:begin -->\nMean GOSPA (c = 2 m')
-    assert text.endswith('- the notes\n\n| the table |\n<!-- results:end -->' + tail)
+    assert '- the notes\n\n| the table |\n\nPeople counting' in text
+    assert text.endswith('\n\n| the count |\n<!-- results:end -->' + tail)
     assert 'old' not in text
     assert main(['results', '--readme', str(readme)]) == 0 and readme.read_text() == text
     capsys.readouterr()
@@ -376,7 +378,7 @@ def test_evaluate_refuses_bad_inputs_with_clear_errors(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_the_readme_results_section_is_what_make_results_writes(tmp_path):
-    """The README's results table and notes, regenerated (`make results`, about 11 s),
+    """The README's results table and notes, regenerated (`make results`, about 2 min),
     byte for byte: a change that moves a row without `make results` fails here."""
     from extended_tracker.evaluation.evaluate import write_readme_results
 

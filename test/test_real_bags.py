@@ -66,9 +66,8 @@ def thinned_run(name, topic, every, preset=None):
 @pytest.mark.parametrize('case', GOLDEN['freiburg_thinned'],
                          ids=lambda c: f'{c["topic"]}-every{c["every"]}-{c["preset"]}')
 def test_the_freiburg_recording_at_lower_scan_rates(case):
-    """Freiburg's 45 Hz /RAWLASER1 thinned to 22 and 11 Hz, on the defaults (walkers' legs
-    become labels of their own) and with the leg_height preset (counts as at 45 Hz), and
-    the 9 Hz /ROBOTLASER1 with the preset."""
+    """Freiburg's 45 Hz /RAWLASER1 thinned to 22 and 11 Hz, and the 9 Hz /ROBOTLASER1,
+    on the defaults."""
     ids, mean = thinned_run('freiburg_corridor_stationary_sick', case['topic'],
                             case['every'], case['preset'])
     assert ids == case['ids']
