@@ -72,7 +72,7 @@ def cmd_replay(args) -> int:
 
 
 SCENES = ('demo', 'tutorial', 'occlusion', 'mixed_traffic', 'walls', 'corridor_drive',
-          'two_scanners')
+          'two_scanners', 'tutorial_legs', 'walls_legs', 'counting')
 
 
 def cmd_simulate(args) -> int:

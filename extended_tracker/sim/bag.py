@@ -14,6 +14,7 @@ from ..bag.bagio import build_message, message_typestore, scan_data, SCAN_TYPE, 
 from ..bag.transforms import TF_TYPE
 from ..errors import BagError
 from .drive import corridor_drive_scene
+from .leg_scenes import at_leg_height, counting_scene
 from .two_scanners import two_scanner_scans, two_scanner_scenes
 
 SCENE_OF = {
@@ -24,6 +25,9 @@ SCENE_OF = {
     'demo': laser.demo_scene,
     'corridor_drive': corridor_drive_scene,
     'two_scanners': two_scanner_scenes,
+    'tutorial_legs': lambda: at_leg_height(laser.tutorial_scene()),
+    'walls_legs': lambda: at_leg_height(laser.walls_scene()),
+    'counting': lambda: counting_scene(8, seed=8),       # 8 people past a leg-height scanner
 }
 
 # the truth is held in memory until it is written at the end: an hour (36 000 scans at
