@@ -42,9 +42,10 @@ def object_beams(sp: ScanPoints, object_size: float, margin: float,
                  min_points: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """
     ``(objects, small)``: which beams (B,) bool return a point of an object (see the
-    module's notes), and which one of a group no larger than ``object_size``, whether or
-    not something nearer hides an end (a walker partly behind another). None of them
-    where ``object_size`` is 0.
+    module's notes), and which one of a group no larger than ``object_size`` with at
+    least one end that stands out, whatever hides the others (a walker partly behind
+    another; not a piece of wall between a person and a corner). None of them where
+    ``object_size`` is 0.
     """
     objects, small = np.zeros(len(sp.angles), dtype=bool), np.zeros(len(sp.angles), dtype=bool)
     if object_size <= 0 or len(sp.beam) < min_points:
@@ -74,9 +75,11 @@ def object_beams(sp: ScanPoints, object_size: float, margin: float,
     at = np.full((len(sp.ranges), 2), np.nan)
     at[sp.beam] = sp.points
     hidden = ~_open(sp.ranges, at, lone, beam_group, ends, sides, margin)
-    shut = np.zeros(n, dtype=bool)
-    shut[np.concatenate([group, group])[hidden]] = True
-    small[beam] = fits[group[seg]]
+    end_group = np.concatenate([group, group])
+    shut, ajar = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    shut[end_group[hidden]] = True
+    ajar[end_group[~hidden]] = True
+    small[beam] = (fits & ajar)[group[seg]]
     objects[beam] = (fits & ~shut)[group[seg]]
     return objects, small
 
