@@ -204,6 +204,34 @@ def test_two_walkers_passing_each_other_stay_two():
     assert est.m[est.label == 3, 0] > 2.5 and est.m[est.label == 5, 0] < 1.5
 
 
+def test_old_labels_that_moved_are_no_pair_and_settled_ones_pair_only_together():
+    """``join_pairs`` with the record's history: two labels shown 20 scans or more that
+    have moved are two objects, however alike they move (people passing close and slowly:
+    the bundled demo's B and C, 1.4 m/s apart, became one); a settled label (old, not
+    moved) pairs with another settled one only (a standing person's legs), not with a
+    young walker passing it."""
+    from extended_tracker.tracks.pairs import join_pairs, SETTLED_SCANS
+
+    cfg = leg_config(3)
+    filt = FilterState.initial(cfg)
+    parts = _parts([3, 5], [0.0, 0.3], (0.1, 0.1))
+    parts.m[:, 2:] = [[0.0, 0.55], [0.9, -0.55]]                 # 1.4 m/s apart
+
+    def forming(scans, travel):
+        record = TrackRecord(reported=np.array([3, 5]), reported_scans=np.array(scans),
+                             reported_travel=np.array(travel, float))
+        return join_pairs(filt, record, parts, cfg)[1].pairs.tolist()
+
+    old, young = SETTLED_SCANS, SETTLED_SCANS - 1
+    assert forming([old, young], [2.0, 0.2]) == [[3, 5]]      # a walker and a young leg
+    assert forming([old, old], [2.0, 3.0]) == []              # two people passing
+    parts.m[:, 2:] = [[1.0, 0.1], [1.2, -0.3]]                  # 0.45 m/s apart: still two
+    assert forming([old, old], [2.0, 3.0]) == []
+    parts.m[:, 2:] = [[0.0, 0.55], [0.9, -0.55]]
+    assert forming([old, old], [0.1, 0.2]) == [[3, 5]]        # a standing person's legs
+    assert forming([old, young], [0.1, 0.2]) == []            # a walker passing a post
+
+
 def test_two_parts_farther_apart_than_pair_distance_stay_two():
     cfg = leg_config(3)
     rng = np.random.default_rng(9)
@@ -244,10 +272,13 @@ def test_a_leg_whose_pair_forms_after_its_birth_is_never_shown():
 def test_two_parts_shown_apart_stay_shown_while_their_pair_forms():
     """Two parts tracked and shown 0.7 m apart (not a pair), then 0.35 m: the pair forms
     over pair_scans (3) scans, and meanwhile both stay reported (only a part never shown
-    waits for its pair); then they are one, under the senior label."""
+    waits for its pair); then they are one, under the senior label. (Both shown fewer
+    than SETTLED_SCANS scans: two old movers are no pair,
+    test_old_labels_that_moved_are_no_pair_and_settled_ones_pair_only_together)"""
     cfg = leg_config(3)
     rng = np.random.default_rng(9)
-    state = tracked_legs(cfg, (2.0, 0.35), (2.0, -0.35))
+    state = with_fields(tracked_legs(cfg, (2.0, 0.35), (2.0, -0.35)),
+                        reported_scans=np.array([4, 3]), reported_hits=np.array([4, 3]))
     reported = []
     for k in range(16):
         gap = 0.7 if k < 10 else 0.35

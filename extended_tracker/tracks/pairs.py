@@ -14,7 +14,7 @@ from ..filter.state import FilterState
 from .estimates import Estimates
 from .record import NO_LABELS, TrackRecord
 
-SETTLED_SCANS = 20     # a label shown this many scans in a row that has not moved is settled
+SETTLED_SCANS = 20     # a label shown this many scans in a row is old; settled if it has not moved
 
 
 def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: TrackerConfig):
@@ -29,6 +29,9 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
     *settled* (shown ``SETTLED_SCANS`` scans in a row without moving
     ``background.moved_distance``): a walker passing a chair, a post or a person standing
     still is no pair with it, though one of a walker's legs stands while the other swings.
+    Nor are two labels both shown that long that have moved: two people passing each
+    other slowly (a walker's legs pair within a few scans of a leg's birth; two ids of
+    one walker that went unpaired that long stay two).
     A pair that has been one
     in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
     heaviest components become one (:func:`join_parts`) under the senior label (reported
@@ -66,10 +69,11 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
         d = est.m[i, :2] - est.m[j, :2]
         dv = est.m[i, 2:] - est.m[j, 2:]
         d2 = np.sum(d * d, axis=1)
-        settled = ((record.reported_scans >= SETTLED_SCANS)
-                   & (record.reported_travel < cfg.background.moved_distance))
+        old = record.reported_scans >= SETTLED_SCANS
+        settled = old & (record.reported_travel < cfg.background.moved_distance)
+        # a settled part pairs with a settled one only, and two old movers not at all
         ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
-              & (settled[i] == settled[j])
+              & (settled[i] == settled[j]) & ~(old[i] & old[j] & ~settled[i])
               & (d2 <= rc.pair_distance ** 2)
               & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
         taken, rows = set(), []
