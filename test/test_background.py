@@ -15,7 +15,6 @@ from extended_tracker.tracks.record import TrackRecord
 
 from mixtures import estimates
 
-
 # objects off: the per-beam rules alone, which learn whatever stands still (an object,
 # at most background.object_size, is learned only after object_time: test_kinds.py)
 NO_OBJECTS = {'background': {'object_size': 0.0}}

@@ -28,6 +28,7 @@ from ..frames.placing import ScanPlacer
 from ..pipeline import PipelineState, step, step_placed
 from ..report.messages import markers_data, SHAPE_RECTANGLE, shapes, tracks_data
 from ..sensing.scan import stamp_ns
+from ..tracks.travel import Travel
 from .bagio import (
     build_message, check_output, MARKERS_TYPE, message_typestore, open_scans, remove_stale_stages,
     scan_data, SCAN_TYPE, staged_bag, TRACKS_TYPE,
@@ -386,7 +387,7 @@ class _Tally:
     def __init__(self):
         self.times, self.counts, self.detections = [], [], 0
         self.events, self.first_reasons = {}, {}
-        self.first_pos, self.travel = {}, {}
+        self.travel = Travel()
 
     def add(self, res) -> None:
         self.times.append(res.processing_time)
@@ -396,18 +397,15 @@ class _Tally:
             self.events[res.event] = self.events.get(res.event, 0) + 1
             if res.error:
                 self.first_reasons.setdefault(res.event, res.error)
-        for lab, m in zip(res.estimates.label.tolist(), res.estimates.m[:, :2]):
-            self.first_pos.setdefault(lab, m.copy())
-            self.travel[lab] = max(self.travel.get(lab, 0.0),
-                                   float(np.linalg.norm(m - self.first_pos[lab])))
+        self.travel.add(res.estimates)
 
     def summarise(self, summary: ReplaySummary) -> None:
         summary.scans = len(self.times)
         summary.valid_detections = self.detections
         summary.events.update(self.events)
         summary.first_reasons.update(self.first_reasons)
-        summary.distinct_ids = len(self.travel)
-        summary.moving_ids = sum(1 for v in self.travel.values() if v > 1.0)
+        summary.distinct_ids = self.travel.distinct()
+        summary.moving_ids = self.travel.moved()
         if self.times:
             ms = np.asarray(self.times) * 1e3
             summary.median_ms = float(np.median(ms))

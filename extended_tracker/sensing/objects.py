@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..filter.distance import find_root, union_min
 from .scan import ScanPoints
 
 GAP_BEAMS = 3.0            # the gap between a segment's returns: this many beam spacings
@@ -50,16 +51,33 @@ def object_beams(sp: ScanPoints, object_size: float, margin: float,
     objects, small = np.zeros(len(sp.angles), dtype=bool), np.zeros(len(sp.angles), dtype=bool)
     if object_size <= 0 or len(sp.beam) < min_points:
         return objects, small
-    ranges, lone = sp.ranges, np.zeros(len(sp.ranges), dtype=bool)
-    if min_points > 1:                  # lone returns cut no segment
-        seg, starts, count = _segments(sp.points, sp.beam, ranges, sp.angle_step, margin)
-        lone[sp.beam[(count < min_points)[seg]]] = True
-        ranges = np.where(lone, np.inf, ranges)
+    ranges, lone = _without_lone_returns(sp, margin, min_points)
     valid = np.isfinite(ranges[sp.beam])
     p, beam = sp.points[valid], sp.beam[valid]
     if len(beam) < min_points:
         return objects, small
     seg, starts, count = _segments(p, beam, ranges, sp.angle_step, margin)
+    group, fits = _grouped(p, starts, count, object_size, min_points)
+    shut, ajar = _end_states(sp, lone, beam, seg, starts, count, group, margin)
+    small[beam] = (fits & ajar)[group[seg]]
+    objects[beam] = (fits & ~shut)[group[seg]]
+    return objects, small
+
+
+def _without_lone_returns(sp: ScanPoints, margin: float, min_points: int):
+    """``(ranges, lone)``: the scan's ranges with the returns of segments of fewer than
+    ``min_points`` taken out (inf), and which beams those were."""
+    lone = np.zeros(len(sp.ranges), dtype=bool)
+    if min_points <= 1:
+        return sp.ranges, lone
+    seg, _, count = _segments(sp.points, sp.beam, sp.ranges, sp.angle_step, margin)
+    lone[sp.beam[(count < min_points)[seg]]] = True
+    return np.where(lone, np.inf, sp.ranges), lone
+
+
+def _grouped(p, starts, count, object_size: float, min_points: int):
+    """``(group, fits)``: each segment's group (:func:`_groups`), and per group whether it
+    is at most ``object_size`` across (its returns' bounding box) with ``min_points``."""
     lo, hi = np.minimum.reduceat(p, starts, axis=0), np.maximum.reduceat(p, starts, axis=0)
     group = _groups(lo, hi, np.hypot(*(hi - lo).T) <= object_size)
     n = group.max() + 1
@@ -68,6 +86,12 @@ def object_beams(sp: ScanPoints, object_size: float, margin: float,
     np.maximum.at(g_hi, group, hi)
     fits = ((np.bincount(group, count, n) >= min_points)
             & (np.hypot(*(g_hi - g_lo).T) <= object_size))
+    return group, fits
+
+
+def _end_states(sp: ScanPoints, lone, beam, seg, starts, count, group, margin):
+    """``(shut, ajar)`` per group: whether some end of its segments is hidden, and whether
+    some end stands out (:func:`_open`)."""
     beam_group = np.full(len(sp.ranges), -1)
     beam_group[beam] = group[seg]
     ends = np.concatenate([beam[starts], beam[starts + count - 1]])
@@ -76,12 +100,11 @@ def object_beams(sp: ScanPoints, object_size: float, margin: float,
     at[sp.beam] = sp.points
     hidden = ~_open(sp.ranges, at, lone, beam_group, ends, sides, margin)
     end_group = np.concatenate([group, group])
+    n = group.max() + 1
     shut, ajar = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
     shut[end_group[hidden]] = True
     ajar[end_group[~hidden]] = True
-    small[beam] = (fits & ajar)[group[seg]]
-    objects[beam] = (fits & ~shut)[group[seg]]
-    return objects, small
+    return shut, ajar
 
 
 def _segments(p, beam, ranges, angle_step, margin):
@@ -101,14 +124,11 @@ def _groups(lo: np.ndarray, hi: np.ndarray, small: np.ndarray) -> np.ndarray:
     whole room's worth of others) is a group of its own."""
     gap = np.maximum(0.0, np.maximum(lo[:, None] - hi[None], lo[None] - hi[:, None]))
     near = (np.hypot(gap[..., 0], gap[..., 1]) <= GROUP_GAP) & small[:, None] & small[None]
-    group = np.arange(len(lo))
-    while True:                        # each takes the smallest label among its neighbours
-        new = np.min(np.where(near, group[None, :], len(lo)), axis=1)
-        new = np.minimum(new, group)
-        if np.array_equal(new, group):
-            break
-        group = new[new]
-    return np.unique(group, return_inverse=True)[1]
+    parent = list(range(len(lo)))
+    for i, j in zip(*np.triu(near, 1).nonzero()):
+        union_min(parent, int(i), int(j))
+    roots = [find_root(parent, i) for i in range(len(lo))]
+    return np.unique(roots, return_inverse=True)[1]
 
 
 def _open(ranges, at, lone, beam_group, ends, sides, margin) -> np.ndarray:

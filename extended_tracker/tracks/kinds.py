@@ -42,6 +42,7 @@ import math
 import numpy as np
 
 from .estimates import Estimates
+from .record import find_sorted
 
 NEVER_MOVED, MOVING, PAUSED = 0, 1, 2
 UNKNOWN, PERSON, VEHICLE, STATIC = 0, 1, 2, 3
@@ -82,9 +83,7 @@ class TrackKinds:
         label = est.label[order].astype(np.int64)
         semi = est.axes()[0][order] if len(est) else np.zeros(0)
         speed = np.hypot(est.m[order, 2], est.m[order, 3])
-        at = np.searchsorted(self.label, label)
-        known = at < len(self.label)
-        known[known] = self.label[at[known]] == label[known]
+        at, known = find_sorted(self.label, label)
         k = at[known]
         size, smooth = semi.copy(), speed.copy()
         size[known] = _smooth(self.size[k], semi[known], dt, SIZE_TIME)
@@ -102,9 +101,7 @@ class TrackKinds:
         kinds do not hold: never moved, unknown, 0)."""
         n = len(est)
         motion, kind, conf = np.zeros(n, np.uint8), np.zeros(n, np.uint8), np.zeros(n)
-        at = np.searchsorted(self.label, est.label)
-        ok = at < len(self.label)
-        ok[ok] = self.label[at[ok]] == est.label[ok]
+        at, ok = find_sorted(self.label, est.label)
         for j in ok.nonzero()[0].tolist():
             i = at[j]
             speed = math.hypot(est.m[j, 2], est.m[j, 3])

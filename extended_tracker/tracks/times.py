@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .estimates import Estimates
+from .record import find_sorted
 
 
 @dataclass(frozen=True)
@@ -29,9 +30,7 @@ class TrackTimes:
         """The times after a scan at ``stamp_ns`` that showed ``est``."""
         order = np.argsort(est.label, kind='stable')
         label = est.label[order].astype(np.int64)
-        at = np.searchsorted(self.label, label)
-        known = at < len(self.label)
-        known[known] = self.label[at[known]] == label[known]
+        at, known = find_sorted(self.label, label)
         first = np.full(len(label), stamp_ns, np.int64)
         detected = np.full(len(label), stamp_ns, np.int64)
         first[known] = self.first_ns[at[known]]
@@ -42,9 +41,7 @@ class TrackTimes:
     def of(self, est: Estimates, stamp_ns: int) -> tuple[np.ndarray, np.ndarray]:
         """``(age, since_detected)`` (s) of each of ``est``'s labels at ``stamp_ns`` (0
         for a label these times do not hold)."""
-        at = np.searchsorted(self.label, est.label)
-        ok = at < len(self.label)
-        ok[ok] = self.label[at[ok]] == est.label[ok]
+        at, ok = find_sorted(self.label, est.label)
         age, since = np.zeros(len(est)), np.zeros(len(est))
         age[ok] = (stamp_ns - self.first_ns[at[ok]]) * 1e-9
         since[ok] = (stamp_ns - self.detected_ns[at[ok]]) * 1e-9
