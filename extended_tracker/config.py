@@ -219,7 +219,7 @@ class BackgroundConfig:
     confirm_time: float = _f(1.0, 'a beam must return the same range this long to be background',
                              's', 0.0, 1e4)
     warmup: float = _f(1.5, 'after start-up only learn the background this long (objects '
-                       'are tracked)', 's', 0.0, 1e4)
+                       'and newcomers are tracked)', 's', 0.0, 1e4)
     object_size: float = _f(1.0, 'returns this small that nothing nearer hides are an object '
                             '(a person, a chair): tracked from start-up (0: none)', 'm', 0.0,
                             10.0)

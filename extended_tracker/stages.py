@@ -20,7 +20,7 @@ from .filter.ggiw import gate_covariance, gate_distance2
 from .filter.state import FilterState
 from .filter.update import gate_threshold, pair_updates, sensor_noise, SensorTerms, update
 from .frames.pose import kinematics_to_inner, mixture_to_inner, Pose2
-from .sensing.background import BackgroundState, beams_near_tracks, update_background
+from .sensing.background import arrived, BackgroundState, beams_near_tracks, update_background
 from .sensing.detection import (
     detection_model, pair_detection_probability, sparse_births, Visibility,
 )
@@ -58,9 +58,9 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
 
     Confirmed, person-sized tracks that have moved protect their returns; a label seen to
     move keeps protecting while it lives, though its report record (and travel) restarts
-    after a scan it was not reported in. During the warm-up every return is background:
-    the filter runs predict-only steps while the background is learned, so walls are
-    never tracked.
+    after a scan it was not reported in. During the warm-up the background is learned
+    and only objects (:mod:`sensing.objects`) and, while the scanner stands, what came
+    into a beam reach the filter, so walls are never tracked.
 
     With the scanner's ``pose`` in a fixed frame, once the scanner has moved, the static
     map learned there (:mod:`sensing.static_map`), seeded with what the per-beam
@@ -81,9 +81,11 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     guard = find_sorted(moved, est.label)[1] & (major <= bgc.protect_semi_axis)
     protect, near = beams_near_tracks(sp, view.to_inner(est.m[:, :2]), major, bgc.track_gate,
                                       guard)
+    objects, small = object_beams(sp, bgc.object_size, bgc.margin, cfg.birth.min_points)
+    # standing still, the scanner sees what came into a beam (a car driving in)
+    came = arrived(state.background, sp, bgc.margin) & (not state.moving)
     # the per-beam background ages by its own scanner's period (several scanners take
     # turns: the time since the last scan is another's)
-    objects, small = object_beams(sp, bgc.object_size, bgc.margin, cfg.birth.min_points)
     background, keep = update_background(state.background, sp, dt if own_dt is None else own_dt,
                                          bgc, protect, near, objects)
     learned = background.learned[sp.beam]
@@ -96,9 +98,9 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
         keep &= ~on_map
         learned |= map_learned
     diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
-    if state.elapsed + dt <= bgc.warmup:      # walls are learned, what is small is tracked
-        diag.warmup = 1
-        keep &= small[sp.beam]
+    if state.elapsed + dt <= bgc.warmup:      # walls are learned; what is small or came is
+        diag.warmup = 1                       # tracked
+        keep &= (small | came)[sp.beam]
     points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
     return Foreground(background, static_map, points, bg_points,
                       view.to_outer(sp.points[learned]), moved)

@@ -59,9 +59,13 @@ A beam that has returned nothing for ``confirm_time`` while its background was u
 beam was never seen free (a stretch of wall hidden behind a person since start-up), tracks
 protect nothing, so a revealed wall that gets tracked is still learned.
 
-Limitation: a per-beam model cannot tell a person who stands still from start-up from a
-piece of furniture; such a person becomes background after ``confirm_time``. Disable the
-background where people stand still from the start and there is no static clutter.
+Each beam also keeps the farthest range it has returned: in the warm-up, a return nearer
+than it by over ``margin`` came into the beam (:func:`arrived`) and is tracked.
+
+A per-beam model cannot tell a person who stands still from start-up from a piece of
+furniture: the caller marks the beams of *objects* (:mod:`sensing.objects`), which are
+learned only after ``object_time``.
+
 When the beam count or angles change, what was learned is re-mapped to the new beams by
 angle (:meth:`BackgroundState.remapped`).
 
@@ -94,6 +98,7 @@ class BackgroundState:
     candidate2_age: np.ndarray
     object_seen: np.ndarray           # an object returned the first candidate (bool)
     object_seen2: np.ndarray          # an object returned the other candidate (bool)
+    farthest: np.ndarray              # farthest range returned (NaN: none yet)
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
@@ -103,7 +108,7 @@ class BackgroundState:
                                np.zeros(b), np.zeros(b), np.zeros(b, dtype=bool),
                                np.zeros(b, dtype=bool), never, np.full(b, np.nan), never,
                                np.full(b, np.nan), np.zeros(b), np.zeros(b, dtype=bool),
-                               np.zeros(b, dtype=bool))
+                               np.zeros(b, dtype=bool), np.full(b, np.nan))
 
     def matches(self, scan: ScanPoints) -> bool:
         return (len(self.angles) == len(scan.angles)
@@ -305,9 +310,28 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         s2_ago = np.where(second, 0.0, seen.s2_ago)
         learned = promote | second
         age = np.where(learned, 0.0, age)
+        farthest = _farthest(state.farthest, r, seen.returned)
     keep = ~(seen.is_bg | learned)[scan.beam]
     return BackgroundState(state.angles, b, c, age, seen.empty, seen.free, learned, b_ago, s2,
-                           s2_ago, c2, age2, was_object & ~learned, was_object2), keep
+                           s2_ago, c2, age2, was_object & ~learned, was_object2, farthest), keep
+
+
+def _farthest(farthest, r, returned):
+    """Each beam's farthest return so far (NaN until it returns something)."""
+    return np.where(returned, np.fmax(farthest, r), farthest)
+
+
+def arrived(state: BackgroundState | None, scan: ScanPoints, margin: float) -> np.ndarray:
+    """
+    Over ``scan``'s beams: the return is nearer by more than ``margin`` than anything its
+    beam returned before: something came into the beam. A wall revealed is farther, never
+    nearer; nothing arrives on a beam that has returned nothing before (open space, or a
+    dropout: a surface a real scanner misses now and then).
+    """
+    if state is None or not state.matches(scan):
+        return np.zeros(len(scan.angles), dtype=bool)
+    with np.errstate(invalid='ignore'):
+        return scan.ranges < state.farthest - margin
 
 
 @dataclass(frozen=True)
