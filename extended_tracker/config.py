@@ -174,7 +174,7 @@ class ExtractionConfig:
                           0.0, 1000.0)
     jump_slack: float = _f(1.0, 'allowance on top of max_speed and max_accel for the spread '
                            'of an estimate between partial views', 'm', 0.0, 100.0)
-    handover_time: float = _f(1.0, 'an id shown until this long ago and lost passes to an '
+    handover_time: float = _f(1.5, 'an id shown until this long ago and lost passes to an '
                               'object first extracted this recently near where it was (0: never)',
                               's', 0.0, 100.0)
     handover_distance: float = _f(0.8, 'how near the lost id\'s extrapolated position the new '
