@@ -150,7 +150,7 @@ class ReductionConfig:
                          '(a leg), in this many scans in a row are one object seen as two and '
                          'become one track (0: never)', 'scans', 0, 100000)
     pair_distance: float = _f(0.6, 'how near the centres of a pair stay', 'm', 0.0, 10.0)
-    pair_speed: float = _f(2.0, 'how much the velocities of a pair differ at most (one leg '
+    pair_speed: float = _f(2.5, 'how much the velocities of a pair differ at most (one leg '
                            'swings while the other stands)', 'm/s', 0.0, 100.0)
     pair_semi_axis: float = _f(0.28, 'largest semi-major axis of a part', 'm', 0.0, 10.0)
 
