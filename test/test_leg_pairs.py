@@ -347,6 +347,23 @@ def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
     assert out.pairs.tolist() == [[3, 5]]
 
 
+def test_a_pair_forming_keeps_its_partner_when_a_nearer_fragment_is_born():
+    """Pairs go nearest first, but a pair already forming goes before them all: on the
+    leg_tracker demo a walker near the scanner had fragments born beside its legs, each
+    nearer than the other leg for a scan, and the legs' pair run broke every time."""
+    from extended_tracker.tracks.pairs import join_pairs
+
+    cfg = leg_config(3)
+    filt = FilterState.initial(cfg)
+    parts = _parts([3, 5, 7], [0.0, 0.45, 0.25], (0.1, 0.1, 0.1))    # 7: a fragment
+    record = TrackRecord(reported=np.array([3, 5, 7]), reported_scans=np.array([9, 5, 1]),
+                         reported_travel=np.zeros(3))
+    assert join_pairs(filt, record, parts, cfg)[1].pairs.tolist() == [[5, 7]]
+    forming = replace(record, pairs=np.array([[3, 5]]), pair_runs=np.array([1]))
+    out = join_pairs(filt, forming, parts, cfg)[1]
+    assert out.pairs.tolist() == [[3, 5]] and out.pair_runs.tolist() == [2]
+
+
 @pytest.mark.parametrize('scans, senior, junior', [((9, 9), 3, 5), ((4, 9), 5, 3),
                                                    ((9, 4), 3, 5)])
 def test_a_pair_joins_under_the_label_reported_longer_then_the_smaller(scans, senior, junior):

@@ -25,15 +25,14 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
     Two extracted labels are a candidate pair when one of them is part-sized (semi-major
     axis at most ``reduction.pair_semi_axis``), their centres are within
     ``reduction.pair_distance`` and their velocities differ by at most
-    ``reduction.pair_speed`` (nearest pairs first, one to one), and both or neither are
-    *settled* (shown ``SETTLED_SCANS`` scans in a row without moving
-    ``background.moved_distance``): a walker passing a chair, a post or a person standing
-    still is no pair with it, though one of a walker's legs stands while the other swings.
-    Nor are two labels both shown that long that have moved: two people passing each
-    other slowly (a walker's legs pair within a few scans of a leg's birth; two ids of
-    one walker that went unpaired that long stay two).
-    A pair that has been one
-    in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
+    ``reduction.pair_speed`` (one to one: pairs already forming first, then the nearest),
+    and both or neither are *settled* (shown ``SETTLED_SCANS`` scans in a row without
+    moving ``background.moved_distance``): a walker passing a chair, a post or a person
+    standing still is no pair with it, though one of a walker's legs stands while the
+    other swings. Nor are two labels both shown that long that have moved: two people
+    passing each other slowly (a walker's legs pair within a few scans of a leg's birth;
+    two ids of one walker that went unpaired that long stay two). A pair that has been
+    one in ``reduction.pair_scans`` scans in a row is one object seen as two: their labels'
     heaviest components become one (:func:`join_parts`) under the senior label (reported
     in more scans in a row; then the smaller label) and the other label's components are
     dropped. The junior label leaves the estimates, the report record and (in
@@ -76,8 +75,11 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
               & (settled[i] == settled[j]) & ~(old[i] & old[j] & ~settled[i])
               & (d2 <= rc.pair_distance ** 2)
               & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
+        # pairs already forming first, then the nearest: a leg's pair run is not broken
+        # by a fragment born nearer for a scan
+        forming_before = _was_pair(record.pairs, est.label[i[ok]], est.label[j[ok]])
         taken, rows = set(), []
-        for k in ok[d2[ok].argsort(kind='stable')].tolist():
+        for k in ok[np.lexsort((d2[ok], ~forming_before))].tolist():
             if i[k] not in taken and j[k] not in taken:
                 taken.update((i[k], j[k]))
                 rows.append((i[k], j[k]))
@@ -97,6 +99,13 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
             filt, record, est, joined = _join(filt, record, est, rows[ready], cfg)
             pairs, runs = pairs[~ready], runs[~ready]
     return filt, replace(record, pairs=pairs, pair_runs=runs), est, joined, forming
+
+
+def _was_pair(pairs: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Whether each ``(a, b)`` (a < b) is a row of ``pairs`` (the last scan's)."""
+    if not len(pairs) or not len(a):
+        return np.zeros(len(a), dtype=bool)
+    return ((pairs[None, :, 0] == a[:, None]) & (pairs[None, :, 1] == b[:, None])).any(axis=1)
 
 
 def _join(filt: FilterState, record: TrackRecord, est: Estimates, rows: np.ndarray,
