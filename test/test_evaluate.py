@@ -117,7 +117,10 @@ def test_scan_shadow_beats_constant_pd_on_the_tutorial_scenario():
     shadow, _ = run_scenario('tutorial', VARIANTS['CPHD, scan shadow'])
     constant, _ = run_scenario('tutorial', VARIANTS['CPHD, constant p_D'])
     assert shadow.gospa_mean < constant.gospa_mean
-    assert shadow.id_switches < constant.id_switches
+    # constant p_D loses the walkers behind the standing one: their tracks break (the id
+    # comes back by handover, within extraction.handover_time, so switches may tie)
+    assert shadow.fragmentations < constant.fragmentations
+    assert shadow.id_switches <= constant.id_switches
 
 
 def test_the_scored_region_is_the_scanners_sector_out_to_its_range():
