@@ -82,8 +82,6 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     protect, near = beams_near_tracks(sp, view.to_inner(est.m[:, :2]), major, bgc.track_gate,
                                       guard)
     objects, small = object_beams(sp, bgc.object_size, bgc.margin, cfg.birth.min_points)
-    # standing still, the scanner sees what came into a beam (a car driving in)
-    came = arrived(state.background, sp, bgc.margin) & (not state.moving)
     # the per-beam background ages by its own scanner's period (several scanners take
     # turns: the time since the last scan is another's)
     background, keep = update_background(state.background, sp, dt if own_dt is None else own_dt,
@@ -100,6 +98,8 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
     diag.background_dropped = len(keep) - int(np.count_nonzero(keep))
     if state.elapsed + dt <= bgc.warmup:      # walls are learned; what is small or came is
         diag.warmup = 1                       # tracked
+        # standing still, the scanner sees what came into a beam (a car driving in)
+        came = arrived(state.background, sp, bgc.margin) & (not state.moving)
         keep &= (small | came)[sp.beam]
     points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
     return Foreground(background, static_map, points, bg_points,
