@@ -39,8 +39,6 @@ REAL_MOUNTS = {
 }
 
 
-
-
 def load_config(path, preset_name=None):
     from .config import preset, TrackerConfig
 
@@ -239,7 +237,8 @@ def _add_replay(sub) -> None:
     r.add_argument('--config', help='YAML config: plain sections, or a ROS 2 parameter file '
                                     '(the entries for the extended_tracker node)')
     r.add_argument('--preset', choices=sorted(PRESETS),
-                   help='named changes from the defaults (leg_height: a scanner that sees people only)')
+                   help='named changes from the defaults (leg_height: a scanner that sees '
+                        'people only)')
     r.add_argument('--plot', help='write a picture of the run (PNG; .svg, .pdf, ... by '
                                  'the suffix)')
     r.add_argument('--quiet', action='store_true', help='no progress bar')

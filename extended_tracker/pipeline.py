@@ -240,8 +240,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                         static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
                         frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
                         scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
-                        times=times, kinds=kinds, view=pose and View(pose, sp.angle_lo, sp.angle_hi,
-                                                        sp.range_max, sp.full_turn))
+                        times=times, kinds=kinds,
+                        view=pose and View(pose, sp.angle_lo, sp.angle_hi, sp.range_max,
+                                           sp.full_turn))
     new_state, mismatch = mount_check(new_state)
     if mismatch:
         event, error = _with_event(event, error, 'mount_mismatch', mismatch)

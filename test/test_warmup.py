@@ -3,10 +3,10 @@
 import numpy as np
 
 from extended_tracker.config import from_dict
+from extended_tracker.evaluation.evaluate import scenario_scans
 from extended_tracker.pipeline import PipelineState, step
 from extended_tracker.sensing.background import arrived, update_background
 from extended_tracker.sensing.scan import scan_to_points
-from extended_tracker.evaluation.evaluate import scenario_scans
 from extended_tracker.sim.laser import Drive, LaserSpec, Scene, SimObject, simulate
 
 ROOM = (((0.0, -6.0), (6.0, -6.0)), ((6.0, -6.0), (6.0, 6.0)), ((6.0, 6.0), (0.0, 6.0)))

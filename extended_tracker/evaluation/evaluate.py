@@ -156,9 +156,10 @@ def hidden_of(objects, view=None) -> np.ndarray:
                     dtype=bool)
 
 
-def run_scenario(name: str, variant: dict):
+def run_scenario(name: str, variant: dict, travel: Travel | None = None):
     """
-    Run one scenario with a config variant; return the TrackScore and per-scan GOSPA.
+    Run one scenario with a config variant; return the TrackScore and per-scan GOSPA
+    (and add every scan's estimates to ``travel``, when given).
 
     Scored over the region the scanner covers: objects outside its sector or beyond its
     range are not in the truth, and estimates there are not scored (a track may coast a
@@ -174,6 +175,8 @@ def run_scenario(name: str, variant: dict):
     for scan, objs, place in scenario_scans(scenes, seconds, seed):
         stopping.check()                 # a lost Ctrl-C: before `results` writes README
         state, res = step(state, scan, cfg, place=place)
+        if travel is not None:
+            travel.add(res.estimates)
         view = None if several else view_of(scan, place and place.pose)
         objs = objects_in_view(objs, view)             # once, for the truth and its hidden
         truth_seq.append(truth_of(objs))
@@ -212,12 +215,8 @@ def results_table() -> str:
 def moved_ids(name: str) -> int:
     """Distinct ids of a scenario run with the defaults that moved more than 1 m from
     where they were first shown (the count `extended-tracker real` gives)."""
-    factory, seconds, seed, overrides, _ = SCENARIOS[name]
-    cfg = from_dict(merge_overrides(SUITE_CONFIG, overrides))
-    state, travel = PipelineState.initial(cfg), Travel()
-    for scan, _, place in scenario_scans(factory(), seconds, seed):
-        state, res = step(state, scan, cfg, place=place)
-        travel.add(res.estimates)
+    travel = Travel()
+    run_scenario(name, {}, travel)
     return travel.moved()
 
 

@@ -24,6 +24,7 @@ CADENCE = 0.9              # gait cycles a second
 STRIDE_PER_SPEED = 0.25    # m of swing per m/s
 MAX_SWING = 0.3            # m: the farthest a leg swings ahead of the centre
 REACH = math.hypot(HIP, MAX_SWING) + LEG_RADIUS    # m: a circle round the centre holds both
+LEG_EXTENT = LEG_RADIUS ** 2 * np.eye(2)           # one leg's extent (a disc)
 
 
 def leg_offsets(heading: float, speed: float, t: float, phase: float) -> np.ndarray:
@@ -43,7 +44,4 @@ def leg_centres(centre, heading: float, speed: float, t: float, phase: float) ->
 def legs_extent(heading: float, speed: float, t: float, phase: float) -> np.ndarray:
     """The truth extent (2, 2) of the two legs (see the module's notes)."""
     d = leg_offsets(heading, speed, t, phase)
-    return 4.0 * np.outer(d, d) + LEG_RADIUS ** 2 * np.eye(2)
-
-
-LEG_EXTENT = LEG_RADIUS ** 2 * np.eye(2)
+    return 4.0 * np.outer(d, d) + LEG_EXTENT
