@@ -45,6 +45,9 @@ class ModelConfig:
                             lo_open=True)
     clutter_rate: float = _f(1.0, 'mean number of clutter detections per scan (Poisson)',
                              'detections', 0.0, 1e4, lo_open=True)
+    clutter_memory: float = _f(3.0, 'memory of the clutter rate learned from the scans; the '
+                               'filter assumes the larger of it and clutter_rate (0: off)',
+                               's', 0.0, 1e4)
     surveillance_area: float = _f(100.0, 'clutter area when the scan does not give one', 'm^2',
                                   0.0, 1e8, lo_open=True)
     clutter_density: str = _f('area', 'where clutter falls: area (uniform over the field of '
@@ -74,10 +77,10 @@ class DetectionConfig:
     hold_hidden: bool = _f(True, 'a confirmed track whose own extent is wholly in shadow, '
                            'with no return on its predicted outline, is not worn down by '
                            'misses')
-    min_fill: float = _f(0.1, 'a component in view expecting fewer returns than this share '
-                         'of the beams its extent spans is not an object: it is dropped, '
-                         'and so is such a birth on returns no track explains (a laser '
-                         'returns on nearly every beam a solid object spans; 0: never)',
+    min_fill: float = _f(0.1, 'a component, or a birth on returns no track explains, in view '
+                         'and expecting fewer returns than this share of the beams its '
+                         'extent spans is no object and is dropped (a laser returns on '
+                         'nearly every beam a solid object spans; 0: never)',
                          'returns per beam', 0.0, 1.0)
 
 
@@ -188,9 +191,9 @@ class ExtractionConfig:
                                  0.0, 100.0)
     rectangle_elongation: float = _f(2.5, 'or more elongated than this (semi-axes ratio) and '
                                      'at least half that long', '', 1.0, 100.0)
-    marker_lifetime: float = _f(1.0, 'RViz drops an object\'s markers this long after they '
-                                'were last sent, so a scanner or node that stops leaves no '
-                                'ghosts (0: kept until deleted)', 's', 0.0, 3600.0)
+    marker_lifetime: float = _f(1.0, 'RViz drops markers this long after they were last '
+                                'sent: a node that stops leaves no ghosts (0: kept until '
+                                'deleted)', 's', 0.0, 3600.0)
 
 
 @dataclass(frozen=True)

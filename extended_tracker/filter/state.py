@@ -1,6 +1,7 @@
 """
 The filter's state, carried from scan to scan: the labelled GGIW mixture and the
-cardinality pmf. The prediction of both.
+cardinality pmf, and the clutter rate learned from the scans. The prediction of the
+first two.
 """
 
 from __future__ import annotations
@@ -29,12 +30,16 @@ class FilterState:
         Posterior cardinality pmf (log).
     next_label : int
         Next unused track label.
+    clutter_rate : float or None
+        Mean clutter detections per scan learned from the scans so far
+        (:mod:`.clutter`); None before the first.
 
     """
 
     mixture: Mixture
     log_card: np.ndarray
     next_label: int = 1
+    clutter_rate: float | None = None
 
     @staticmethod
     def initial(cfg: TrackerConfig, next_label: int = 1) -> 'FilterState':
@@ -65,4 +70,4 @@ def predict_state(state: FilterState, dt: float, cfg: TrackerConfig) -> FilterSt
     if len(log_card) != mc.n_max + 1:                 # N_max changed while running
         log_card = resize_cardinality(log_card, mc.n_max)
     log_card = predict_cardinality(log_card, mc.p_survival ** dt, birth_mean)
-    return FilterState(mixture, log_card, next_label)
+    return FilterState(mixture, log_card, next_label, state.clutter_rate)

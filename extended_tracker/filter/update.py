@@ -25,6 +25,7 @@ from .algebra2 import eig2, inv2
 from .assemble import assemble, UpdateFacts
 from .births import birth_intensity, birth_log_miss_factor, birth_prior
 from .cardinality import add_cardinality, poisson_log_pmf, thin_cardinality
+from .clutter import clutter_count, clutter_rate_in_use, learned_clutter_rate
 from .cphd import cphd_update, phd_update, UpdateWeights
 from .ggiw import (
     cell_stats, CellStats, gate_covariance, gate_pairs, log_miss_factor, PairUpdate, update_pairs,
@@ -304,12 +305,16 @@ def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.nd
     log_g = _detection_log_likelihoods(pred.mixture, pairs, kept, cfg, birth_unseen, diag)
     lonely = _lonely_cells(pairs.stats.n, log_g, cfg, diag.sparse_births)
     weights = cardinality_update(pred, pairs, kept, log_g, p_d, pairs.rate_scale, held, lonely,
-                                 cfg, dt)
+                                 clutter_rate_in_use(pred, cfg), cfg, dt)
     diag.unexplained = int(not weights.possible)
     posterior, next_label, facts = assemble(pred, pairs, kept, weights, sensor.visibility,
                                             cfg, diag)
     reduced = reduce(posterior, cfg, diag)
-    return FilterState(reduced, weights.log_card, next_label), facts
+    learned = pred.clutter_rate
+    if weights.possible:
+        count = clutter_count(weights, pairs.stats.n, len(pairs.points))
+        learned = learned_clutter_rate(learned, count, dt, cfg)
+    return FilterState(reduced, weights.log_card, next_label, learned), facts
 
 
 def _lonely_cells(cell_size: np.ndarray, log_g: np.ndarray, cfg: TrackerConfig,
@@ -353,8 +358,8 @@ def _detection_log_likelihoods(mix: Mixture, pairs: Pairs, kept: _Kept, cfg: Tra
 
 
 def cardinality_update(pred: FilterState, pairs: Pairs, kept: _Kept, log_g: np.ndarray,
-                       p_d: np.ndarray, rate_scale, held, lonely, cfg: TrackerConfig,
-                       dt: float) -> UpdateWeights:
+                       p_d: np.ndarray, rate_scale, held, lonely, clutter_rate: float,
+                       cfg: TrackerConfig, dt: float) -> UpdateWeights:
     """
     Weigh every pair over the partitions (CPHD, or PHD in ``model.mode`` ``phd``).
 
@@ -376,9 +381,9 @@ def cardinality_update(pred: FilterState, pairs: Pairs, kept: _Kept, log_g: np.n
     cell_log_c = -stats.n * np.log(pairs.area) if stats.log_c is None else stats.log_c
     if mc.mode != 'cphd':
         return phd_update(log_w, log_qd, log_g, cell_log_c, stats.n, partitions,
-                          mc.clutter_rate, mc.n_max, lonely)
+                          clutter_rate, mc.n_max, lonely)
     # the clutter pmf up to every detection: no partition can take more as clutter
-    clutter_pmf = _clutter_log_pmf(mc.clutter_rate, len(pairs.points) + 1)
+    clutter_pmf = _clutter_log_pmf(clutter_rate, len(pairs.points) + 1)
     apart = None if held is None else out_of_sight(mix, held, kept.comp)
     if apart is None:
         return cphd_update(log_w, log_qd, log_g, cell_log_c, stats.n, partitions,
