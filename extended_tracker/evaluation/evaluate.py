@@ -29,7 +29,8 @@ GOSPA_C = 2.0          # m, cut-off
 GOSPA_P = 2.0
 
 # every scenario's config: the simulated laser puts its clutter returns on random beams at
-# uniform ranges (sim.laser), and the filter is told so, as it is told the clutter rate
+# uniform ranges (sim.laser), and the filter is told so; their rate it learns (its
+# model.clutter_rate stays the default)
 SUITE_CONFIG = {'model': {'clutter_density': 'beam'}}
 
 # name: (scene factory, seconds, seed, config overrides, what it shows); every scene runs
