@@ -252,49 +252,6 @@ def test_reset_drops_tracks_background_and_frame_and_ids_continue():
     assert res.estimates.label.min() > old_max
 
 
-@pytest.mark.parametrize('warmup', [1.05, 1.55])
-def test_the_warm_up_lasts_background_warmup_seconds_of_scans(warmup):
-    """From the first scan (dt the default 0.1 s) the warm-up runs while the time so far
-    is at most background.warmup: 10 scans at 10 Hz for 1.05 s, 15 for 1.55 s;
-    the next scan tracks. (Off the scan grid: the time so far adds up 0.1 s steps, whose
-    rounding takes 15 of them past 1.5.)"""
-    cfg = from_dict({'background': {'enabled': True, 'warmup': warmup}})
-    results = step_results(cfg, 25)
-    flags = [res.diagnostics['warmup'] for res in results]
-    n = int(warmup * 10)
-    assert flags == [1] * n + [0] * (25 - n)
-    # meanwhile the returns of groups at most object_size across are detections (a person
-    # standing there from start-up), and so are those nearer by over margin than any
-    # earlier return of their beam (a walker who came); every other return is background
-    for res, came, passed in warm_up_detections(cfg, results[:n]):
-        assert len(res.background_points) + len(res.points) == res.diagnostics['detections']
-        np.testing.assert_array_equal(res.points, passed)
-    assert sum(came.any() for _, came, _ in warm_up_detections(cfg, results[:n])) >= n - 2
-    # with objects off, only what came
-    cfg = from_dict({'background': {'warmup': warmup, 'object_size': 0.0}})
-    for res, came, passed in warm_up_detections(cfg, step_results(cfg, n)):
-        np.testing.assert_array_equal(res.points, passed)
-
-
-def warm_up_detections(cfg, results):
-    """Per warm-up result: it, the beams whose return came (nearer by over margin than
-    every earlier return of the beam), and the points that should pass: those and the
-    small groups' (:func:`sensing.objects.object_beams`)."""
-    from extended_tracker.sensing.objects import object_beams
-    from extended_tracker.sensing.scan import scan_to_points
-
-    farthest, margin = None, cfg.background.margin
-    for res, scan in zip(results, scans(len(results))):
-        sp = scan_to_points(scan)
-        small = object_beams(sp, cfg.background.object_size, margin)[1]
-        ranges = np.where(np.isfinite(sp.ranges), sp.ranges, np.nan)
-        with np.errstate(invalid='ignore'):
-            came = (sp.ranges < farthest - margin if farthest is not None
-                    else np.zeros_like(small))              # NaN (never returned): False
-        farthest = ranges if farthest is None else np.fmax(farthest, ranges)
-        yield res, came, sp.points[(small | came)[sp.beam]]
-
-
 def test_mixed_bad_beams_do_not_disturb_the_rest():
     state = PipelineState.initial(CFG)
     for s in scans(30):

@@ -57,10 +57,9 @@ returns that way.
 A beam that has returned nothing for ``confirm_time`` while its background was unknown is
 *free* (open space, or nothing within range). Where the background is unknown and the
 beam was never seen free (a stretch of wall hidden behind a person since start-up), tracks
-protect nothing, so a revealed wall that gets tracked is still learned.
-
-Each beam also keeps the farthest range it has returned: in the warm-up, a return nearer
-than it by over ``margin`` came into the beam (:func:`arrived`) and is tracked.
+protect nothing, so a revealed wall that gets tracked is still learned. Each beam keeps
+the farthest range it returned (open space: infinite): in the warm-up, a return nearer
+than it by over ``margin`` came into the beam (:func:`arrived`).
 
 A per-beam model cannot tell a person who stands still from start-up from a piece of
 furniture: the caller marks the beams of *objects* (:mod:`sensing.objects`), which are
@@ -78,6 +77,10 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from .scan import ScanPoints
+
+#: a beam that has returned nothing this long since start-up looks into open space (s);
+#: shorter runs of nothing are dropouts (a dark or glancing surface missed now and then)
+OPEN_SPACE_TIME = 0.5
 
 
 @dataclass(frozen=True)
@@ -98,7 +101,7 @@ class BackgroundState:
     candidate2_age: np.ndarray
     object_seen: np.ndarray           # an object returned the first candidate (bool)
     object_seen2: np.ndarray          # an object returned the other candidate (bool)
-    farthest: np.ndarray              # farthest range returned (NaN: none yet)
+    farthest: np.ndarray              # farthest range returned (NaN: none yet; inf: open)
 
     @staticmethod
     def for_scan(scan: ScanPoints) -> 'BackgroundState':
@@ -310,23 +313,25 @@ def update_background(state: BackgroundState | None, scan: ScanPoints, dt: float
         s2_ago = np.where(second, 0.0, seen.s2_ago)
         learned = promote | second
         age = np.where(learned, 0.0, age)
-        farthest = _farthest(state.farthest, r, seen.returned)
+        farthest = _farthest(state.farthest, r, seen)
     keep = ~(seen.is_bg | learned)[scan.beam]
     return BackgroundState(state.angles, b, c, age, seen.empty, seen.free, learned, b_ago, s2,
                            s2_ago, c2, age2, was_object & ~learned, was_object2, farthest), keep
 
 
-def _farthest(farthest, r, returned):
-    """Each beam's farthest return so far (NaN until it returns something)."""
-    return np.where(returned, np.fmax(farthest, r), farthest)
+def _farthest(farthest, r, seen: _Seen):
+    """Each beam's farthest return so far: NaN until it returns something, infinite once
+    it has returned nothing for ``OPEN_SPACE_TIME`` since start-up (open space; less is a
+    dropout, a surface missed a scan or two, whose next return is not new)."""
+    opened = np.isnan(farthest) & (seen.empty >= OPEN_SPACE_TIME - 1e-6)
+    return np.where(seen.returned, np.fmax(farthest, r), np.where(opened, np.inf, farthest))
 
 
 def arrived(state: BackgroundState | None, scan: ScanPoints, margin: float) -> np.ndarray:
     """
     Over ``scan``'s beams: the return is nearer by more than ``margin`` than anything its
-    beam returned before: something came into the beam. A wall revealed is farther, never
-    nearer; nothing arrives on a beam that has returned nothing before (open space, or a
-    dropout: a surface a real scanner misses now and then).
+    beam returned before, or than open space (:func:`_farthest`): something came into the
+    beam. A wall revealed is farther, never nearer.
     """
     if state is None or not state.matches(scan):
         return np.zeros(len(scan.angles), dtype=bool)
