@@ -243,6 +243,10 @@ def test_diagnostics_give_each_scan_its_figures_and_the_event_counts(harness):
     assert int(values['scans']) == 12 and int(values['beams']) == 361
     assert int(values['detections']) == int(np.isfinite(data[11][0].ranges).sum())
     assert float(values['processing_time_ms']) == round(reply.processing_time * 1e3, 3) > 0
+    # the clutter rate the filter assumes: the told one, or more where it learned more
+    learned = harness.node.state.filter.clutter_rate
+    assert learned is not None
+    assert float(values['clutter_rate']) == round(max(1.0, learned), 2)
     assert not [k for k in values if k.startswith('count_')]
     bad = zero_increment(data[12][0])
     for _ in range(2):

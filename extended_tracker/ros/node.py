@@ -43,6 +43,7 @@ from .. import stopping
 from ..config import from_flat, to_flat, TrackerConfig
 from ..configio import NODE_NAME
 from ..errors import ConfigError
+from ..filter.clutter import clutter_rate_in_use
 from ..frames.placing import NOTICES, PLACING_EVENTS, ScanPlacer
 from ..pipeline import held, PipelineState, reset, step_placed
 from ..report.messages import markers_data, tracks_data
@@ -336,6 +337,7 @@ class TrackerNode(Node):
         values['objects'] = len(result.estimates)
         values['scans'] = self.scans
         values['scans_dropped'] = self.gaps_total()
+        values['clutter_rate'] = round(clutter_rate_in_use(self.state.filter, self.cfg), 2)
         values['reason'] = result.error or ''
         values['frame'] = self.frame_note
         for k, v in sorted(self.counts.items()):
