@@ -75,21 +75,21 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
               & (settled[i] == settled[j]) & ~(old[i] & old[j] & ~settled[i])
               & (d2 <= rc.pair_distance ** 2)
               & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
-        # pairs already forming first, then the nearest: a leg's pair run is not broken
-        # by a fragment born nearer for a scan
-        forming_before = _was_pair(record.pairs, est.label[i[ok]], est.label[j[ok]])
-        taken, rows = set(), []
-        for k in ok[np.lexsort((d2[ok], ~forming_before))].tolist():
+        # each candidate's row among the last scan's pairs (-1: none); pairs already
+        # forming go first, then the nearest: a leg's pair run is not broken by a
+        # fragment born nearer for a scan
+        before = _pair_rows(record.pairs, est.label[i[ok]], est.label[j[ok]])
+        taken, chosen = set(), []
+        for n in np.lexsort((d2[ok], before < 0)).tolist():
+            k = ok[n]
             if i[k] not in taken and j[k] not in taken:
                 taken.update((i[k], j[k]))
-                rows.append((i[k], j[k]))
-        rows = np.array(rows, dtype=np.int64).reshape(-1, 2)
+                chosen.append(n)
+        rows = np.stack([i[ok[chosen]], j[ok[chosen]]], axis=1).reshape(-1, 2)
         pairs = est.label[rows]                        # labels ascending: smaller first
+        was = before[chosen]
         runs = np.ones(len(rows), np.int64)
-        for n, (a, b) in enumerate(pairs.tolist()):
-            was = ((record.pairs[:, 0] == a) & (record.pairs[:, 1] == b)).nonzero()[0]
-            if len(was):
-                runs[n] += record.pair_runs[was[0]]
+        runs[was >= 0] += record.pair_runs[was[was >= 0]]
         # senior first in each row: reported in more scans in a row, then the smaller label
         swap = record.reported_scans[rows[:, 1]] > record.reported_scans[rows[:, 0]]
         rows[swap] = rows[swap][:, ::-1]
@@ -101,11 +101,14 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
     return filt, replace(record, pairs=pairs, pair_runs=runs), est, joined, forming
 
 
-def _was_pair(pairs: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Whether each ``(a, b)`` (a < b) is a row of ``pairs`` (the last scan's)."""
-    if not len(pairs) or not len(a):
-        return np.zeros(len(a), dtype=bool)
-    return ((pairs[None, :, 0] == a[:, None]) & (pairs[None, :, 1] == b[:, None])).any(axis=1)
+def _pair_rows(pairs: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Each ``(a, b)``'s row (a < b) in ``pairs`` (the last scan's), or -1."""
+    rows = np.full(len(a), -1, dtype=np.int64)
+    if len(pairs) and len(a):
+        hit = (pairs[None, :, 0] == a[:, None]) & (pairs[None, :, 1] == b[:, None])
+        found = hit.any(axis=1)
+        rows[found] = hit[found].argmax(axis=1)
+    return rows
 
 
 def _join(filt: FilterState, record: TrackRecord, est: Estimates, rows: np.ndarray,
