@@ -79,8 +79,7 @@ class DetectionConfig:
                            'misses')
     min_fill: float = _f(0.1, 'a component, or a birth on returns no track explains, in view '
                          'and expecting fewer returns than this share of the beams its '
-                         'extent spans is no object and is dropped (a laser returns on '
-                         'nearly every beam a solid object spans; 0: never)',
+                         'extent spans is dropped: no solid object (0: never)',
                          'returns per beam', 0.0, 1.0)
 
 
@@ -88,8 +87,11 @@ class DetectionConfig:
 class PartitionConfig:
     """Measurement partitioning and gating."""
 
-    d_min: float = _f(0.45, 'smallest distance threshold of distance partitioning (over the '
-                      'gap between a walker\'s legs)', 'm', 0.0, 10.0)
+    d_min: float = _f(0.2, 'smallest distance threshold of distance partitioning until the '
+                      'scans show legs', 'm', 0.0, 10.0)
+    leg_gap: float = _f(0.45, 'once the scans show legs (a scanner at leg height, '
+                        'doc/model.md 5), the smallest threshold is at least this, over a '
+                        'walker\'s two legs (0: never)', 'm', 0.0, 10.0)
     d_max: float = _f(0.8, 'largest distance threshold of distance partitioning', 'm', 0.0,
                       20.0, lo_open=True)
     max_partitions: int = _f(40, 'cap on the number of partitions per scan', '', 1, 10000)
@@ -100,9 +102,8 @@ class PartitionConfig:
                               20)
     prediction_partition: bool = _f(True, 'add a partition from the gates of confident tracks')
     split_small: int = _f(2, 'a cell of the finest distance partition with 2 up to this many '
-                          'detections is also tried as lone returns, one partition each, so '
-                          'that returns closer than d_min can still be clutter (below 2: '
-                          'never)', 'detections', 0, 1000)
+                          'detections is also tried as lone returns (clutter), one partition '
+                          'each (below 2: never)', 'detections', 0, 1000)
     gate_probability: float = _f(0.999, 'chi-square gate probability of (component, cell); 1: '
                                  'no gate', '', 0.5, 1.0, lo_open=True)
 
@@ -173,8 +174,7 @@ class ExtractionConfig:
                           'm/s', 0.0, 1000.0, lo_open=True)
     max_accel: float = _f(10.0, 'a report farther than max_accel t^2 / 2 (plus jump_slack) '
                           'from where its id\'s last shown velocity would have carried it in '
-                          'the t seconds since is a new object (0: no such check)', 'm/s^2',
-                          0.0, 1000.0)
+                          't seconds is a new object (0: no check)', 'm/s^2', 0.0, 1000.0)
     jump_slack: float = _f(1.0, 'allowance on top of max_speed and max_accel for the spread '
                            'of an estimate between partial views', 'm', 0.0, 100.0)
     handover_time: float = _f(1.5, 'an id shown until this long ago and lost passes to an '
@@ -232,8 +232,7 @@ class BackgroundConfig:
                            'm', 0.0, 10.0)
     moved_distance: float = _f(0.5, 'a confirmed track protects its returns from being '
                                'learned once it has moved this far beyond its first extent '
-                               'while seen (a person; a static object is learned however '
-                               'it is tracked)', 'm', 0.0, 100.0)
+                               'while seen (a person)', 'm', 0.0, 100.0)
     protect_semi_axis: float = _f(0.6, 'only tracks this small (semi-major) protect returns: '
                                   'people, not walls', 'm', 0.0, 100.0)
     map_cell: float = _f(0.1, 'cell of the static map learned in the fixed frame while the '
@@ -340,6 +339,9 @@ def validate(cfg: TrackerConfig) -> None:
     if cfg.partition.d_min > cfg.partition.d_max:
         raise ConfigError(f'partition.d_min ({cfg.partition.d_min}) must not exceed '
                           f'partition.d_max ({cfg.partition.d_max})')
+    if cfg.partition.leg_gap > cfg.partition.d_max:
+        raise ConfigError(f'partition.leg_gap ({cfg.partition.leg_gap}) must not exceed '
+                          f'partition.d_max ({cfg.partition.d_max})')
 
 
 def leaf_kind(f) -> str:
@@ -420,13 +422,14 @@ def from_flat(flat: dict[str, Any]) -> TrackerConfig:
 # ``config/<name>.yaml`` is generated from these (``make config``); a test keeps them equal.
 PRESETS: dict[str, dict] = {
     # The defaults serve a scanner at any height: leg pairs are joined (pair_scans,
-    # pair_semi_axis), the legs are offered as one cell (d_min), and an id is shown only
+    # pair_semi_axis), the legs are offered as one cell once the scans show legs (leg_gap;
+    # told the height, from the first scan: d_min), and an id is shown only
     # after returns in three scans (confirm_detections), which keeps stray leg-sized returns
     # (chair legs, a half-hidden wall edge) from being shown. What is left for a scanner at
     # leg height is that it sees people only: an id moves at walking speed, not a car's,
     # and max_speed 3 m/s gives a new id where a coasting track would take over a newcomer
     # 4-9 m away (leg_tracker positive_1 and demo recordings).
-    'leg_height': {'extraction': {'max_speed': 3.0}},
+    'leg_height': {'partition': {'d_min': 0.45}, 'extraction': {'max_speed': 3.0}},
 }
 
 

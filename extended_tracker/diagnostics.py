@@ -23,6 +23,9 @@ class Diagnostics(Mapping):
         Valid returns of the scan.
     background_dropped, warmup : int
         Returns dropped as background; 1 while the background warm-up runs.
+    legs : int
+        1 once the scans have shown legs: a walker's legs are partitioned as one cell
+        (:mod:`sensing.legs`).
     left_view, at_sensor, sparse, absorbed : int
         Predicted components dropped: out of the field of view, holding the sensor, in
         view but expecting far fewer returns than the beams they span, standing on
@@ -51,6 +54,7 @@ class Diagnostics(Mapping):
     detections: int = 0
     background_dropped: int = 0
     warmup: int = 0
+    legs: int = 0
     left_view: int = 0
     at_sensor: int = 0
     sparse: int = 0

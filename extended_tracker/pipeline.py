@@ -45,6 +45,7 @@ from .frames.motion import frame_jump, scan_period
 from .frames.pose import Placement, Pose2
 from .scanners import anchored, mount_check, seen_elsewhere, silenced, View, with_scanner
 from .sensing.background import BackgroundState
+from .sensing.legs import LegEvidence, legs_seen, scan_config
 from .sensing.scan import frame_of, scan_to_points, ScanPoints, stamp_ns
 from .sensing.static_map import StaticMap
 from .stages import detect, drop_absorbed, remove_background, update_tracks
@@ -96,6 +97,8 @@ class PipelineState:
         frame, ``{frame: Scanner}`` (:func:`scanners.with_scanner`).
     mount_mismatch : bool
         The scanners' mounts were found to disagree (said once).
+    legs : LegEvidence
+        Whether the scans show legs (:mod:`sensing.legs`).
 
     """
 
@@ -118,6 +121,7 @@ class PipelineState:
     others: dict = field(default_factory=dict)
     view: View | None = None
     mount_mismatch: bool = False
+    legs: LegEvidence = field(default_factory=LegEvidence)
 
     @staticmethod
     def initial(cfg: TrackerConfig) -> 'PipelineState':
@@ -198,7 +202,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     frame, the scanner at its pose there (the caller looked it up at the scan's stamp).
     Without it they are kept in the scan's own frame, the scanner standing still.
 
-    convert -> background -> predict -> p_D -> pair updates -> update -> track management.
+    convert -> legs seen? -> background -> predict -> p_D -> pair updates -> update ->
+    track management.
 
     ``arrival_ns``, when given, is when the scan arrived (the node's clock, a bag's record
     time): a scan whose header stamp is zero (a driver that does not set it) is taken at
@@ -219,6 +224,9 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     pose = place.pose if place is not None else None
     state, leaving = anchored(state, pose, scan_in.event == 'frame_jump')
     diag = _scan_counts(sp)
+    legs = legs_seen(state.legs, sp, dt, cfg)
+    scan_cfg = scan_config(cfg, legs)
+    diag.legs = int(legs.seen)
     if _layout_changed(state.background, sp, cfg):
         event, error = _with_event(event, error, 'scan_layout_changed',
                                    _layout_change(state.background, sp))
@@ -228,8 +236,8 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                          first_new=scan_in.filter.next_label)
     pred, vis = detect(pred, sp, cfg, diag, pose,
                        seen_elsewhere(state, pred.mixture.m[:, :2]))
-    filt, tracks, estimates = update_tracks(pred, scan_in.tracks, fg.points, sp, vis, cfg, dt,
-                                            diag, pose)
+    filt, tracks, estimates = update_tracks(pred, scan_in.tracks, fg.points, sp, vis, scan_cfg,
+                                            dt, diag, pose)
     if diag.unexplained:
         event, error = _with_event(event, error, 'unexplained_scan',
                                    _unexplained(len(fg.points), cfg))
@@ -240,7 +248,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
                         static_map=fg.static_map, last_stamp_ns=scan_in.stamp_ns,
                         frame_id=scan_in.frame_id, last_estimates=estimates, moved=fg.moved,
                         scans=state.scans + 1, elapsed=state.elapsed + dt, pose=pose,
-                        times=times, kinds=kinds,
+                        times=times, kinds=kinds, legs=legs,
                         view=pose and View(pose, sp.angle_lo, sp.angle_hi, sp.range_max,
                                            sp.full_turn))
     new_state, mismatch = mount_check(new_state)

@@ -26,6 +26,7 @@ from extended_tracker.errors import ConfigError
     ({'model.sigma_accel': float('nan')}, 'must be finite'),
     ({'model.sigma_accel': float('inf')}, 'model.sigma_accel must be finite, got inf'),
     ({'partition.d_min': 0.9, 'partition.d_max': 0.5}, 'd_min (0.9) must not exceed'),
+    ({'partition.leg_gap': 0.9, 'partition.d_max': 0.5}, 'leg_gap (0.9) must not exceed'),
     ({'model.rho': '0.25'}, "model.rho must be a number, got '0.25'"),
     ({'model.rho': True}, 'model.rho must be a number, got True'),
     ({'birth.regions': [1.0, 'a', 2.0]}, 'birth.regions must be a list of finite numbers'),
@@ -71,10 +72,10 @@ def test_round_trips_and_documentation():
 
 
 def _with(flat: dict, name: str, value) -> dict:
-    """``flat`` with ``name`` set to ``value``, and d_max raised to its top when d_min is
-    set (the one check across fields: d_min must not exceed d_max)."""
+    """``flat`` with ``name`` set to ``value``, and d_max raised to its top when d_min or
+    leg_gap is set (the checks across fields: neither may exceed d_max)."""
     out = dict(flat, **{name: value})
-    if name == 'partition.d_min':
+    if name in ('partition.d_min', 'partition.leg_gap'):
         out['partition.d_max'] = 20.0
     return out
 
