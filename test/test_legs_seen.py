@@ -42,9 +42,10 @@ def scan_of(ranges, beams=BEAMS):
     return scan_to_points(msg)
 
 
-def test_two_legs_side_by_side_are_a_pair():
-    ranges = cast([(2.0, 0.125, LEG), (2.0, -0.125, LEG)])
-    assert leg_pairs(scan_of(ranges)) == 1
+@pytest.mark.parametrize('beams', [BEAMS, BEAMS[::-1]])    # also a negative increment
+def test_two_legs_side_by_side_are_a_pair(beams):
+    ranges = cast([(2.0, 0.125, LEG), (2.0, -0.125, LEG)], beams=beams)
+    assert leg_pairs(scan_of(ranges, beams)) == 1
 
 
 def test_a_dropout_inside_a_leg_does_not_break_it():
