@@ -104,6 +104,8 @@ def _print_real(label: str, s, config: str) -> None:
         print(f'  frame_id {old!r} written as {new!r}')
     if s.fixed_frame:
         print(f'  tracked in {s.fixed_frame} ({s.frame_why})')
+    if s.legs_from is not None:
+        print(f'  legs seen {s.legs_seen()}')
 
 
 def cmd_real(args) -> int:

@@ -22,7 +22,7 @@ def sim_scans(seconds=2.0, seed=0):
 
 
 def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0, zero_stamps=False,
-               compression=None, edit=None):
+               compression=None, edit=None, scans=None):
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
     store = message_typestore()
@@ -32,7 +32,7 @@ def write_ros2(path, topics=('/scan',), storage='sqlite3', seconds=2.0, zero_sta
         writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
     with writer as w:
         conns = [w.add_connection(t, SCAN_TYPE, typestore=store) for t in topics]
-        for k, scan in enumerate(sim_scans(seconds)):
+        for k, scan in enumerate(scans or sim_scans(seconds)):
             ns = scan.header.stamp.sec * 10**9 + scan.header.stamp.nanosec
             data = scan_data(scan)
             if zero_stamps:                      # a driver that leaves the stamp unset
@@ -416,6 +416,28 @@ def test_summary_gives_the_first_reason_of_each_event(tmp_path):
         'tracks restarted']
     clean = replay(tmp_path / 'in', tmp_path / 'out2', CFG, progress=False)
     assert clean.lines()[-1] == 'events           none' and clean.distinct_ids >= 1
+
+
+def test_the_summary_says_whether_and_from_which_scan_the_scans_showed_legs(tmp_path):
+    """The tutorial's walkers at body height show no legs; at leg height the summary
+    names the first scan whose diagnostics say ``legs``."""
+    from extended_tracker.pipeline import PipelineState, step
+    from extended_tracker.sim.leg_scenes import at_leg_height
+
+    write_ros2(tmp_path / 'body')
+    body = replay(tmp_path / 'body', tmp_path / 'out', CFG, progress=False)
+    assert body.legs_from is None
+    assert 'legs seen        no (a scanner at body height, or no one walked by)' in body.lines()
+    scans = [s for s, _ in simulate(at_leg_height(tutorial_scene()), 2.0, seed=0)]
+    write_ros2(tmp_path / 'legs', scans=scans)
+    legs = replay(tmp_path / 'legs', tmp_path / 'out2', CFG, progress=False)
+    state, flags = PipelineState.initial(CFG), []
+    for scan in scans:
+        state, res = step(state, scan, CFG)
+        flags.append(res.diagnostics['legs'])
+    assert legs.legs_from == flags.index(1) + 1
+    assert (f'legs seen        from scan {legs.legs_from} on (a scanner at leg height: '
+            'partition.leg_gap)') in legs.lines()
 
 
 def test_zero_header_stamps_take_the_record_time(tmp_path):

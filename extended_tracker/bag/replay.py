@@ -63,6 +63,7 @@ class ReplaySummary:
     fixed_frame: str = ''               # '' : the scan frame
     frame_why: str = ''
     notes: list = field(default_factory=list)   # topics that share a frame
+    legs_from: int | None = None        # the first scan that saw legs (sensing.legs)
 
     def lines(self) -> list[str]:
         per_scan = self.valid_detections / max(self.scans, 1)
@@ -74,6 +75,7 @@ class ReplaySummary:
             f'valid detections {self.valid_detections} ({per_scan:.1f} per scan)',
             f'distinct ids     {self.distinct_ids} ({self.moving_ids} moved more than 1 m)',
             f'objects per scan mean {self.mean_count:.2f}, max {self.max_count}',
+            f'legs seen        {self.legs_seen()}',
             f'time per scan    median {self.median_ms:.2f} ms, p99 {self.p99_ms:.2f} ms',
             f'events           {ev}',
         ] + [f'  first {k}: {why}' for k, why in sorted(self.first_reasons.items())] + [
@@ -81,6 +83,11 @@ class ReplaySummary:
             for old, new in sorted(self.renamed_frames.items())] + [
             f'removed          {stage} (the staging folder of an earlier run that was killed)'
             for stage in self.removed_stages]
+
+    def legs_seen(self) -> str:
+        if self.legs_from is None:
+            return 'no (a scanner at body height, or no one walked by)'
+        return f'from scan {self.legs_from} on (a scanner at leg height: partition.leg_gap)'
 
 
 class _Progress:
@@ -388,9 +395,12 @@ class _Tally:
         self.times, self.counts, self.detections = [], [], 0
         self.events, self.first_reasons = {}, {}
         self.travel = Travel()
+        self.legs_from = None
 
     def add(self, res) -> None:
         self.times.append(res.processing_time)
+        if self.legs_from is None and res.diagnostics.get('legs'):
+            self.legs_from = len(self.times)
         self.counts.append(len(res.estimates))
         self.detections += res.diagnostics.get('detections', 0)
         if res.event:
@@ -406,6 +416,7 @@ class _Tally:
         summary.first_reasons.update(self.first_reasons)
         summary.distinct_ids = self.travel.distinct()
         summary.moving_ids = self.travel.moved()
+        summary.legs_from = self.legs_from
         if self.times:
             ms = np.asarray(self.times) * 1e3
             summary.median_ms = float(np.median(ms))
