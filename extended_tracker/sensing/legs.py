@@ -55,7 +55,7 @@ def leg_pairs(sp: ScanPoints) -> int:
     if len(p) < 2 * LEG_POINTS:
         return 0
     starts, ends = _clusters(p, beam)
-    r = np.hypot(*p.T)
+    r = sp.ranges[beam]
     near, far = np.minimum.reduceat(r, starts), np.maximum.reduceat(r, starts)
     centre = np.add.reduceat(p, starts) / (ends - starts)[:, None]
     leg = _leg_sized(p, beam, starts, ends, far, sp.ranges).nonzero()[0]

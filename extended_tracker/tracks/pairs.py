@@ -85,7 +85,8 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
             if i[k] not in taken and j[k] not in taken:
                 taken.update((i[k], j[k]))
                 chosen.append(n)
-        rows = np.stack([i[ok[chosen]], j[ok[chosen]]], axis=1).reshape(-1, 2)
+        picked = ok[chosen]
+        rows = np.stack([i[picked], j[picked]], axis=1)
         pairs = est.label[rows]                        # labels ascending: smaller first
         was = before[chosen]
         runs = np.ones(len(rows), np.int64)
