@@ -56,8 +56,9 @@ def test_a_return_on_a_beam_that_looked_into_open_space_came():
 def warmup_points(objects, moving=False, seconds=1.4, walls=ROOM):
     """The pipeline in a room 6 m deep (or ``walls``) with ``objects`` in it (the scanner
     standing, or driving along the back wall at 0.3 m/s); the points that reached the
-    filter in each scan of the warm-up. (A wall that ends in view is another matter: a piece of it under
-    1 m, cut off by a mover's shadow, is a small group with an end that stands out.)"""
+    filter in each scan of the warm-up. (A wall that ends in view is another matter: a
+    piece of it under 1 m, cut off by a mover's shadow, is a small group with an end that
+    stands out.)"""
     keys = ((0.0, 0.0, 0.0, 0.0), (10.0, 0.0, 3.0, 0.0)) if moving else ((0.0, 0.0, 0.0, 0.0),)
     # no dropouts: three in a row cut the wall, and a piece under 1 m at its end stands
     # out as the small group it then is
