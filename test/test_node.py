@@ -1165,3 +1165,37 @@ def test_unknown_parameters_are_named_with_the_nearest_known_one(monkeypatch):
     (text, _), = rec.at('warning')
     assert text == ('2 given parameter(s) this node does not have, ignored: '
                     'model.clutter_rte (did you mean model.clutter_rate?), zz')
+
+
+def test_the_log_says_once_when_the_scans_show_legs_and_again_after_a_reset(harness,
+                                                                           monkeypatch):
+    """A walker at leg height: one info line names the scan from which the legs are seen
+    (the partition then spans the leg gap), none for the scans after it; a reset forgets
+    the decision, so the line comes again. A walker at body height: no such line."""
+    from extended_tracker.sim.laser import LaserSpec, Scene, SimObject
+
+    def walker(shape):
+        scene = Scene(objects=(SimObject((3.0, -1.5), (0.0, 1.0), shape=shape),),
+                      laser=LaserSpec(n_beams=513, dropout=0.0))
+        return [ros_scan(scan) for scan, _ in simulate(scene, 1.5, seed=1)]
+
+    def said():
+        return [text for text, _ in rec.at('info') if text.startswith('the scans show legs')]
+
+    rec = RecordingLogger()
+    monkeypatch.setattr(harness.node, 'get_logger', lambda: rec)
+    for scan in walker('ellipse'):
+        harness.send(scan)
+    assert said() == [] and not harness.node.state.legs.seen
+    harness.node._on_reset(None, type('Response', (), {})())
+    legs = walker('legs')
+    for scan in legs:
+        harness.send(scan)
+    first, = said()
+    seen_at = int(re.search(r'\(scan (\d+)\)', first).group(1))
+    assert len(legs) < seen_at < 2 * len(legs)            # counted from the node's start
+    assert first.endswith('(partition.leg_gap 0.45 m)')
+    harness.node._on_reset(None, type('Response', (), {})())
+    for scan in legs:
+        harness.send(scan)
+    assert len(said()) == 2

@@ -93,3 +93,30 @@ class ScanGaps:
             missing = round(step / period) - 1
         self.total += missing
         return missing
+
+
+class Pace:
+    """
+    Whether the node keeps up: ``slow_scans`` scans in a row whose callback took longer
+    than the time from the previous scan's stamp to theirs (a stamp that goes back gives
+    no period, and starts the count again, as a scan that kept up does).
+    """
+
+    def __init__(self, slow_scans: int):
+        self.slow_scans = slow_scans
+        self._last: int | None = None
+        self._in_a_row = 0
+
+    def falling_behind(self, stamp_ns: int, took: float) -> float | None:
+        """The scan period (s) when this scan, which took ``took`` s, is the
+        ``slow_scans``-th slow one in a row (the count then starts again); else None."""
+        last, self._last = self._last, stamp_ns
+        period = (stamp_ns - last) * 1e-9 if last is not None and stamp_ns > last else None
+        if period is None or took <= period:
+            self._in_a_row = 0
+            return None
+        self._in_a_row += 1
+        if self._in_a_row < self.slow_scans:
+            return None
+        self._in_a_row = 0
+        return period

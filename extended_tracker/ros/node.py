@@ -49,7 +49,7 @@ from ..pipeline import held, PipelineState, reset, step_placed
 from ..report.messages import markers_data, tracks_data
 from .convert import fill
 from .entry import take_signals
-from .events import EventLog, ScanGaps
+from .events import EventLog, Pace, ScanGaps
 from .parameters import (
     declare_scanner_parameters, parameter_descriptors, parse_mounts, range_error, type_error,
     unknown_overrides,
@@ -85,8 +85,8 @@ class TrackerNode(Node):
         self.counts = self.events.counts          # event -> count (the diagnostics' count_*)
         self.unknown_parameters = self._check_overrides()
         self.scans = 0
-        self._last_stamp_ns = None
-        self._slow_in_a_row = 0
+        self.pace = Pace(FALLING_BEHIND_SCANS)
+        self.legs_said = False                    # the log said the scans show legs
         reliable = QoSProfile(depth=10)
         self.pub_tracks = self.create_publisher(ExtendedObjectArray, 'tracks', reliable)
         self.pub_markers = self.create_publisher(MarkerArray, 'tracks/markers', reliable)
@@ -237,6 +237,12 @@ class TrackerNode(Node):
             result = held(self.state, msg, INTERNAL_ERROR, text, arrival)
         self.scans += 1
         self._check_gap(msg)
+        if self.state.legs.seen and not self.legs_said:
+            self.legs_said = True
+            self.get_logger().info(
+                f'the scans show legs (scan {self.scans}): the scanner is at leg height, and '
+                f'a walker\'s legs are one object from now on (partition.leg_gap '
+                f'{self.cfg.partition.leg_gap:g} m)')
         if result.event and result.event != INTERNAL_ERROR:
             self._count(result.event, result.error or result.event.replace('_', ' '))
         try:
@@ -278,14 +284,8 @@ class TrackerNode(Node):
     def check_pace(self, stamp_ns: int, took: float) -> None:
         """Count (and say) FALLING_BEHIND_SCANS scans in a row that took longer than the
         scanner's period, as the stamps give it: the node is not keeping up."""
-        last, self._last_stamp_ns = self._last_stamp_ns, stamp_ns
-        period = (stamp_ns - last) * 1e-9 if last is not None and stamp_ns > last else None
-        if period is None or took <= period:
-            self._slow_in_a_row = 0
-            return
-        self._slow_in_a_row += 1
-        if self._slow_in_a_row == FALLING_BEHIND_SCANS:
-            self._slow_in_a_row = 0
+        period = self.pace.falling_behind(stamp_ns, took)
+        if period is not None:
             self._count(FALLING_BEHIND, f'{FALLING_BEHIND_SCANS} scans in a row took longer '
                         f'than the scan period (the last {took * 1e3:.1f} ms against '
                         f'{period * 1e3:.1f} ms): scans queue up and the sensor-data QoS '
@@ -293,6 +293,7 @@ class TrackerNode(Node):
 
     def _on_reset(self, request, response):
         self.state = reset(self.state, self.cfg)
+        self.legs_said = False
         response.success = True
         response.message = (f'tracks, learned background and frame dropped; new ids start '
                             f'at {self.state.filter.next_label}')
