@@ -8,6 +8,9 @@ differ only in their figures are one kind: the first is logged, the others count
 reason of another kind is logged at once, however soon after the first (a driver sending
 two kinds of broken scan shows both). What was counted but not logged is summarised by
 :meth:`EventLog.summary_lines`, which the node calls every ``period`` seconds.
+
+Two counters feed it: :class:`ScanGaps` (scans missing between stamps) and :class:`Pace`
+(scans in a row that took longer than the scan period).
 """
 
 from __future__ import annotations
