@@ -1,6 +1,6 @@
 """The node's event log and scan-gap counter (ros/events.py: plain Python, no ROS)."""
 
-from extended_tracker.ros.events import EventLog, reason_kind, ScanGaps
+from extended_tracker.ros.events import EventLog, Pace, reason_kind, ScanGaps
 
 MS = 1_000_000
 
@@ -35,3 +35,20 @@ def test_the_scanners_period_comes_from_scan_time_or_the_shortest_step():
     assert got == [0, 0, 0, 0, 38, 1] and gaps.total == 39
     # repeats and steps back are not gaps
     assert gaps.missing(2050 * MS) == 0 and gaps.missing(10 * MS) == 0
+
+
+def test_pace_says_the_period_at_the_nth_slow_scan_in_a_row_and_counts_again():
+    """Three slow scans in a row (10 Hz stamps, 0.15 s each) give the period at the
+    third; a scan that kept up, or a stamp that goes back, starts the count again."""
+    pace = Pace(3)
+    stamp = [0]
+
+    def scan(took, step=100):
+        stamp[0] += step * MS
+        return pace.falling_behind(stamp[0], took)
+
+    assert pace.falling_behind(0, 0.5) is None               # no period yet
+    assert [scan(0.15) for _ in range(3)] == [None, None, 0.1]
+    assert [scan(0.15), scan(0.05), scan(0.15), scan(0.15)] == [None, None, None, None]
+    assert scan(0.15, step=-50) is None                      # back in time: no period
+    assert [scan(0.15) for _ in range(3)] == [None, None, 0.1]
