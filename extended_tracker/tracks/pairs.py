@@ -12,9 +12,7 @@ from ..filter.mixture import Mixture
 from ..filter.reduction import join_parts
 from ..filter.state import FilterState
 from .estimates import Estimates
-from .record import NO_LABELS, TrackRecord
-
-SETTLED_SCANS = 20     # a label shown this many scans in a row is old; settled if it has not moved
+from .record import NO_LABELS, SETTLED_SCANS, TrackRecord
 
 
 def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: TrackerConfig):
@@ -69,7 +67,7 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
         dv = est.m[i, 2:] - est.m[j, 2:]
         d2 = np.sum(d * d, axis=1)
         old = record.reported_scans >= SETTLED_SCANS
-        settled = old & (record.reported_travel < cfg.background.moved_distance)
+        settled = record.settled_rows(cfg.background.moved_distance)
         # a settled part pairs with a settled one only, and two old movers not at all
         ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
               & (settled[i] == settled[j]) & ~(old[i] & old[j] & ~settled[i])

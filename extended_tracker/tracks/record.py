@@ -13,6 +13,8 @@ from ..config import ExtractionConfig
 from ..filter.tables import read_only
 
 NO_LABELS = read_only(np.zeros(0, np.int64))[0]
+#: a label reported this many scans in a row is old; settled if it has not moved
+SETTLED_SCANS = 20
 
 
 @dataclass(frozen=True)
@@ -75,6 +77,12 @@ class TrackRecord:
         """
         return ((self.reported_scans >= ex.confirm_scans)
                 & (self.reported_hits >= ex.confirm_detections))
+
+    def settled_rows(self, moved_distance: float) -> np.ndarray:
+        """Which ``reported`` labels are settled: reported ``SETTLED_SCANS`` scans in a row
+        and never ``moved_distance`` from where they were first reported (a chair, a post,
+        a person standing still)."""
+        return (self.reported_scans >= SETTLED_SCANS) & (self.reported_travel < moved_distance)
 
     def confirmed_labels(self, ex: ExtractionConfig) -> np.ndarray:
         """The confirmed labels (:meth:`confirmed_rows`), ascending."""
