@@ -173,3 +173,39 @@ def test_a_newcomer_too_far_or_too_late_gets_its_own_id():
     late = _walker(1.0, 0.6, gap=12)
     assert late[19][0] == [1] and late[-1][0] == [2]
     assert sum(n for _, n in late) == 0
+
+
+def test_a_lost_movers_id_goes_before_a_lost_settled_ones():
+    """
+    A walker (label 3, moving) comes beside an object tracked where it stood since
+    start-up (label 2, settled: reported SETTLED_SCANS scans, never moved). One cell holds
+    both, a young label (9) takes it, both are lost; 9 stands nearer the object. The
+    walker's id goes to 9, and the object's stays free for its own track to take back
+    (the MiR recording: nearest first took the object's id away with the walker).
+    """
+    from extended_tracker.tracks.record import SETTLED_SCANS
+
+    def record(travel):
+        r = lost_state([2, 3], [[0.0, 0.0], [0.7, 0.0]], vel=[[0.0, 0.0], [0.0, 0.0]],
+                       reported=[2, 3], reported_scans=[SETTLED_SCANS, SETTLED_SCANS])
+        return TrackRecord(**{**r.__dict__, 'reported_travel': np.array(travel)})
+
+    new = FilterState(mixture([(2, 0.1, 0.0, 0.0), (3, 0.1, 0.7, 0.0), (9, 1.0, 0.3, 0.0)]),
+                      np.zeros(1), 12)
+    est = estimates([9], [[0.3, 0.0]])
+    moved = CFG.background.moved_distance
+    _, out_est, _, n = hand_over(record([0.0, 2 * moved]), new, est, CFG, 0.1, 12)
+    assert n == 1 and out_est.label.tolist() == [3]
+    # both settled, or both movers: the nearest lost id, as before
+    for travel in ([0.0, 0.0], [2 * moved, 2 * moved]):
+        _, out_est, _, n = hand_over(record(travel), new, est, CFG, 0.1, 12)
+        assert n == 1 and out_est.label.tolist() == [2]
+    # the object settled but not in the last report (lost for longer): a mover like any
+    r = record([0.0, 2 * moved])
+    r = TrackRecord(**{**r.__dict__, 'reported': np.array([3]),
+                       'reported_scans': np.array([SETTLED_SCANS]),
+                       'reported_origin': np.zeros((1, 2)),
+                       'reported_travel': np.array([2 * moved]), 'reported_size': np.zeros(1),
+                       'reported_hits': np.array([SETTLED_SCANS])})
+    _, out_est, _, n = hand_over(r, new, est, CFG, 0.1, 12)
+    assert n == 1 and out_est.label.tolist() == [2]
