@@ -7,6 +7,8 @@ within ``extraction.handover_distance`` of where the lost one would be (last sho
 position plus velocity times the time since) takes the lost id.
 """
 
+from dataclasses import replace
+
 import numpy as np
 
 from extended_tracker.config import from_dict
@@ -186,9 +188,9 @@ def test_a_lost_movers_id_goes_before_a_lost_settled_ones():
     from extended_tracker.tracks.record import SETTLED_SCANS
 
     def record(travel):
-        r = lost_state([2, 3], [[0.0, 0.0], [0.7, 0.0]], vel=[[0.0, 0.0], [0.0, 0.0]],
-                       reported=[2, 3], reported_scans=[SETTLED_SCANS, SETTLED_SCANS])
-        return TrackRecord(**{**r.__dict__, 'reported_travel': np.array(travel)})
+        r = lost_state([2, 3], [[0.0, 0.0], [0.7, 0.0]], reported=[2, 3],
+                       reported_scans=[SETTLED_SCANS, SETTLED_SCANS])
+        return replace(r, reported_travel=np.array(travel, dtype=float))
 
     new = FilterState(mixture([(2, 0.1, 0.0, 0.0), (3, 0.1, 0.7, 0.0), (9, 1.0, 0.3, 0.0)]),
                       np.zeros(1), 12)
@@ -201,11 +203,7 @@ def test_a_lost_movers_id_goes_before_a_lost_settled_ones():
         _, out_est, _, n = hand_over(record(travel), new, est, CFG, 0.1, 12)
         assert n == 1 and out_est.label.tolist() == [2]
     # the object settled but not in the last report (lost for longer): a mover like any
-    r = record([0.0, 2 * moved])
-    r = TrackRecord(**{**r.__dict__, 'reported': np.array([3]),
-                       'reported_scans': np.array([SETTLED_SCANS]),
-                       'reported_origin': np.zeros((1, 2)),
-                       'reported_travel': np.array([2 * moved]), 'reported_size': np.zeros(1),
-                       'reported_hits': np.array([SETTLED_SCANS])})
+    r = replace(lost_state([2, 3], [[0.0, 0.0], [0.7, 0.0]], reported=[3],
+                           reported_scans=[SETTLED_SCANS]), reported_travel=np.array([2 * moved]))
     _, out_est, _, n = hand_over(r, new, est, CFG, 0.1, 12)
     assert n == 1 and out_est.label.tolist() == [2]

@@ -48,10 +48,10 @@ def leg_pairs(sp: ScanPoints) -> int:
     The number of leg pairs in one scan: two leg-sized clusters next to each other among
     the leg-sized ones in beam order (the wall behind may show between them), their
     centres :data:`PAIR_DISTANCE` apart, with nothing nearer between them (a nearer thing
-    between two narrow pieces makes them the edges of one object it hides in part).
+    between two narrow pieces makes them the edges of one object it hides in part). The
+    points come in beam order, as :func:`scan.scan_to_points` gives them.
     """
-    order = np.argsort(sp.beam, kind='stable')
-    p, beam = sp.points[order], sp.beam[order]
+    p, beam = sp.points, sp.beam
     if len(p) < 2 * LEG_POINTS:
         return 0
     starts, ends = _clusters(p, beam)
