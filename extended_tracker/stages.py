@@ -203,6 +203,8 @@ def update_tracks(pred: FilterState, tracks: TrackRecord, points: np.ndarray,
     free = pairs.free_birth_cells(pair_p_d, cfg.birth.min_points)
     if len(free):
         unseen[free] = sparse_births(mixture_to_inner(view, pairs.births(free)), sp, cfg)
+    # the warm-up shows the filter only what stands out: its clutter is not the scan's
     filt, facts = update(pred, pairs, sensor, pair_p_d, cfg, dt, diag, birth_unseen=unseen,
-                         confirmed=tracks.confirmed_labels(cfg.extraction))
+                         confirmed=tracks.confirmed_labels(cfg.extraction),
+                         learn_clutter=not diag.warmup)
     return manage_tracks(filt, tracks, facts, cfg, dt, pred.next_label, diag)

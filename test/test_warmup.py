@@ -10,7 +10,9 @@ from extended_tracker.sensing import background
 from extended_tracker.sensing.background import arrived, OPEN_SPACE_TIME, update_background
 from extended_tracker.sensing.objects import object_beams
 from extended_tracker.sensing.scan import scan_to_points
-from extended_tracker.sim.laser import Drive, LaserSpec, Scene, SimObject, simulate, tutorial_scene
+from extended_tracker.sim.laser import (
+    clutter_scene, Drive, LaserSpec, Scene, SimObject, simulate, tutorial_scene,
+)
 
 ROOM = (((0.0, -6.0), (6.0, -6.0)), ((6.0, -6.0), (6.0, 6.0)), ((6.0, 6.0), (0.0, 6.0)))
 CFG = from_dict({})
@@ -164,3 +166,19 @@ def warm_up_detections(cfg, results):
         if (k + 1) * 0.1 >= OPEN_SPACE_TIME - 1e-9:        # nothing yet: open space
             farthest = np.where(np.isnan(farthest), np.inf, farthest)
         yield res, came, sp.points[(small | came)[sp.beam]]
+
+
+def test_the_clutter_rate_is_learned_from_the_first_scan_after_the_warm_up():
+    """The warm-up shows the filter only what stands out or came, so its clutter count
+    is no measure of the scan's: the learned rate starts after it, near the simulated
+    15 returns per scan (learned during the warm-up it began near 4 and took seconds
+    to climb, while pairs of clutter returns were born as objects)."""
+    scene = clutter_scene()
+    state, rates = PipelineState.initial(CFG), []
+    for scan, _ in simulate(scene, 2.0, seed=0):
+        state, res = step(state, scan, CFG)
+        rates.append((res.diagnostics['warmup'], state.filter.clutter_rate))
+    warm = [rate for flag, rate in rates if flag]
+    after = [rate for flag, rate in rates if not flag]
+    assert len(warm) >= 10 and all(rate is None for rate in warm)
+    assert all(rate > 0.75 * scene.laser.clutter_per_scan for rate in after[:5]), after

@@ -256,7 +256,8 @@ def _kept_pairs(pairs: Pairs, pair_p_d: np.ndarray) -> _Kept:
 def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.ndarray,
            cfg: TrackerConfig, dt: float, diag: Diagnostics,
            birth_unseen: np.ndarray | None = None,
-           confirmed: np.ndarray | None = None) -> tuple[FilterState, UpdateFacts]:
+           confirmed: np.ndarray | None = None,
+           learn_clutter: bool = True) -> tuple[FilterState, UpdateFacts]:
     """
     The multi-object update: weigh the pairs over the partitions, assemble and reduce.
 
@@ -281,6 +282,9 @@ def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.nd
     confirmed : (r,) int array, optional
         Confirmed labels, ascending: with ``detection.hold_hidden``, those wholly in
         shadow are held from a miss (:func:`hidden.held_p_d`).
+    learn_clutter : bool
+        Whether this scan's clutter count teaches the learned clutter rate (not while the
+        caller hides part of the scan from the filter: a background warm-up).
 
     Returns
     -------
@@ -311,7 +315,7 @@ def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.nd
                                             cfg, diag)
     reduced = reduce(posterior, cfg, diag)
     learned = pred.clutter_rate
-    if weights.possible:
+    if weights.possible and learn_clutter:
         count = clutter_count(weights, pairs.stats.n, len(pairs.points))
         learned = learned_clutter_rate(learned, count, dt, cfg)
     return FilterState(reduced, weights.log_card, next_label, learned), facts
