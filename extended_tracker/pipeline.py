@@ -224,7 +224,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     pose = place.pose if place is not None else None
     state, leaving = anchored(state, pose, scan_in.event == 'frame_jump')
     diag = _scan_counts(sp)
-    legs = legs_seen(state.legs, sp, dt, cfg)
+    legs = legs_seen(state.legs, sp, scan_in.own_dt, cfg, state.scanner)
     scan_cfg = scan_config(cfg, legs)
     diag.legs = int(legs.seen)
     if _layout_changed(state.background, sp, cfg):

@@ -111,7 +111,7 @@ def test_the_legs_are_seen_once_a_quarter_of_the_last_second_showed_a_pair():
     for sp in [legs, empty] * 20:                 # a pair in every other scan: 0.5 on average
         ev = legs_seen(ev, sp, 0.1, cfg)
         share = keep * share + (1 - keep) * (sp is legs)
-        assert ev.share == pytest.approx(share) and ev.seen == (share >= legs_module.SHARE)
+        assert ev.share() == pytest.approx(share) and ev.seen == (share >= legs_module.SHARE)
         if ev.seen:
             break
     assert ev.seen
@@ -126,7 +126,28 @@ def test_the_legs_are_seen_once_a_quarter_of_the_last_second_showed_a_pair():
     assert legs_seen(LegEvidence(), legs, 10.0, from_dict({'partition': {'leg_gap': 0.0}})) \
         == LegEvidence()
     high = from_dict({'partition': {'d_min': 0.5}})
-    assert scan_config(high, LegEvidence(1.0, True)) is high
+    assert scan_config(high, LegEvidence(((None, 1.0),), True)) is high
+
+
+def test_each_scanner_keeps_its_own_share():
+    """Two scanners take turns at 10 Hz each; one sees a leg pair in every scan, the
+    other nothing (the walker is outside its view). Its own share reaches SHARE after
+    three of its scans, as one scanner's would; one share over both scanners' scans,
+    half of them empty, took thirteen (seven of its own)."""
+    cfg = from_dict({'partition': {'d_min': 0.2, 'leg_gap': 0.45}})
+    legs, empty = scan_of(cast([(2.0, 0.125, LEG), (2.0, -0.125, LEG)])), scan_of(cast([]))
+    ev, turns = LegEvidence(), 0
+    while not ev.seen:
+        ev = legs_seen(ev, legs, 0.1, cfg, 'front')
+        ev = legs_seen(ev, empty, 0.1, cfg, 'rear') if not ev.seen else ev
+        turns += 1
+    assert turns == 3 and ev.share('rear') == 0.0
+    assert ev.share('front') == pytest.approx(1.0 - math.exp(-0.3 / legs_module.MEMORY))
+    shared, scans = LegEvidence(), 0                # the scanners' scans in one average
+    while not shared.seen:
+        shared = legs_seen(shared, legs if scans % 2 == 0 else empty, 0.05, cfg)
+        scans += 1
+    assert scans == 13
 
 
 def thresholds_used(monkeypatch, cfg, shape, seconds=2.0):

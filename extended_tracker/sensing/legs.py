@@ -8,12 +8,14 @@ as a torso. Distance partitioning must then offer a walker's two legs as one cel
 smallest threshold over the gap between them), while at body height that threshold would
 join two people walking close together.
 
-:func:`legs_seen` keeps the share of scans that showed a leg pair (:func:`leg_pairs`),
-averaged over :data:`MEMORY` seconds. At body height a pair shows now and then (the two
-edges of a person half hidden), in a few scans in a hundred; at leg height, in most scans
-with a walker in view. Once the share reaches :data:`SHARE` the legs are seen, and
-:func:`scan_config` raises the smallest threshold to ``partition.leg_gap`` for the rest of
-the run: a scanner does not change height. A reset forgets it.
+:func:`legs_seen` keeps, per scanner, the share of its scans that showed a leg pair
+(:func:`leg_pairs`), averaged over :data:`MEMORY` seconds of its own scans: a second
+scanner that does not see the walker does not dilute the first one's pairs. At body
+height a pair shows now and then (the two edges of a person half hidden), in a few scans
+in a hundred; at leg height, in most scans with a walker in view. Once a share reaches
+:data:`SHARE` the legs are seen, and :func:`scan_config` raises the smallest threshold to
+``partition.leg_gap`` for the rest of the run: a scanner does not change height. A reset
+forgets it.
 """
 
 from __future__ import annotations
@@ -37,10 +39,15 @@ SHARE = 0.25           # the legs are seen once that share reaches this
 
 @dataclass(frozen=True)
 class LegEvidence:
-    """The share of recent scans that showed a leg pair, and whether the legs are seen."""
+    """Per scanner (its frame; None: the one scanner), the share of its recent scans that
+    showed a leg pair; and whether the legs are seen."""
 
-    share: float = 0.0
+    shares: tuple[tuple[str | None, float], ...] = ()
     seen: bool = False
+
+    def share(self, scanner: str | None = None) -> float:
+        """The share of ``scanner``'s recent scans that showed a leg pair."""
+        return dict(self.shares).get(scanner, 0.0)
 
 
 def leg_pairs(sp: ScanPoints) -> int:
@@ -89,15 +96,18 @@ def _leg_sized(p, beam, starts, ends, far, ranges) -> np.ndarray:
             & stands_out)
 
 
-def legs_seen(evidence: LegEvidence, sp: ScanPoints, dt: float,
-              cfg: TrackerConfig) -> LegEvidence:
-    """The evidence with this scan, taken ``dt`` seconds after the last one (nothing more
-    is looked at once the legs are seen, or with ``partition.leg_gap`` 0)."""
+def legs_seen(evidence: LegEvidence, sp: ScanPoints, dt: float, cfg: TrackerConfig,
+              scanner: str | None = None) -> LegEvidence:
+    """The evidence with this scan of ``scanner``, taken ``dt`` seconds after that
+    scanner's last one (nothing more is looked at once the legs are seen, or with
+    ``partition.leg_gap`` 0)."""
     if evidence.seen or cfg.partition.leg_gap <= 0:
         return evidence
     keep = math.exp(-max(dt, 0.0) / MEMORY)
-    share = keep * evidence.share + (1.0 - keep) * (leg_pairs(sp) > 0)
-    return LegEvidence(share, share >= SHARE)
+    share = keep * evidence.share(scanner) + (1.0 - keep) * (leg_pairs(sp) > 0)
+    shares = dict(evidence.shares)
+    shares[scanner] = share
+    return LegEvidence(tuple(shares.items()), share >= SHARE)
 
 
 def scan_config(cfg: TrackerConfig, evidence: LegEvidence) -> TrackerConfig:
