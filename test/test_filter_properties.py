@@ -880,20 +880,33 @@ def test_birth_labels_one_per_set_of_cells_sharing_returns_or_the_claiming_label
 
 
 def test_a_labels_detections_are_its_heaviest_cells_where_detection_outweighs_a_miss():
-    """``num_detections`` of a label: the size of the cell of its heaviest detected pair,
-    when its detected weight exceeds its missed weight; none otherwise."""
-    from extended_tracker.filter.assemble import detections_per_label
+    """A label's detected cell: the cell of its heaviest detected pair, when its detected
+    weight exceeds its missed weight; none otherwise."""
+    from extended_tracker.filter.assemble import detected_cells
 
     mix = Mixture(np.ones(3), np.full(3, 10.0), np.ones(3), np.zeros((3, 4)),
                   np.tile(np.eye(4), (3, 1, 1)), np.full(3, 20.0),
                   np.tile(np.eye(2), (3, 1, 1)), np.array([1, 1, 2]))
-    stats = cell_stats(np.zeros((9, 2)), [np.arange(2), np.arange(2, 7), np.arange(7, 9)])
     comp, cell = np.array([0, 1, 2, 2]), np.array([0, 1, 2, 1])
     w_det = np.array([0.2, 0.5, 0.1, 0.05])          # label 1: 0.7 detected, 2: 0.15
     w_missed = np.array([0.1, 0.1, 0.6])               # label 1: 0.2 missed, 2: 0.6
-    assert detections_per_label(mix, comp, cell, w_det, w_missed, stats.n) == {1: 5}
+    assert detected_cells(mix, comp, cell, w_det, w_missed) == {1: 1}
     w_missed[2] = 0.1
-    assert detections_per_label(mix, comp, cell, w_det, w_missed, stats.n) == {1: 5, 2: 2}
+    assert detected_cells(mix, comp, cell, w_det, w_missed) == {1: 1, 2: 2}
+
+
+@pytest.mark.parametrize('n', [2, 3, 7, 40])
+def test_a_cells_width_is_the_segment_its_returns_lie_evenly_along(n):
+    """``n`` returns evenly spaced along a segment 0.37 m long, at any heading: the width
+    is the segment's length; a lone return has none."""
+    from extended_tracker.filter.assemble import cell_widths
+
+    pieces = [np.linspace(0.0, 0.37, n)[:, None] * [np.cos(h), np.sin(h)] + [1.0, 2.0]
+              for h in np.radians([0.0, 30.0, 90.0, 200.0])]
+    pts = np.vstack(pieces + [[[5.0, 5.0]]])
+    cells = [np.arange(k * n, (k + 1) * n) for k in range(4)] + [np.array([4 * n])]
+    widths = cell_widths(cell_stats(pts, cells))
+    np.testing.assert_allclose(widths, [0.37] * 4 + [0.0], atol=1e-12)
 
 
 def test_far_parts_of_a_label_become_new_objects_when_heavy_and_go_when_light():

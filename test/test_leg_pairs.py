@@ -347,6 +347,58 @@ def test_a_pair_needs_one_part_sized_report_and_pairs_go_nearest_first():
     assert out.pairs.tolist() == [[3, 5]]
 
 
+def test_a_part_returns_a_legs_width_where_a_cell_updated_it():
+    """Two reports whose extents are part-sized (0.22 m), 0.55 m apart and alike in
+    velocity: people side by side at body height, whose cells this scan are 0.4 m wide,
+    are no pair; with one cell a leg's width (0.1 m) they are; a report no cell updated
+    this scan is judged by its extent alone."""
+    from extended_tracker.tracks.pairs import join_pairs, PART_WIDTH
+
+    cfg = leg_config(3)
+    filt = FilterState.initial(cfg)
+    record = TrackRecord(reported=np.array([3, 5]), reported_scans=np.array([2, 2]),
+                         reported_travel=np.zeros(2))
+    parts = _parts([3, 5], [0.0, 0.55], (0.22, 0.22))
+
+    def forming(widths):
+        return join_pairs(filt, record, parts, cfg, widths)[1].pairs.tolist()
+
+    assert 0.1 < PART_WIDTH < 0.4
+    assert forming({3: 0.4, 5: 0.4}) == []
+    assert forming({3: 0.4, 5: 0.1}) == [[3, 5]]
+    assert forming({3: 0.4}) == [[3, 5]]
+    assert forming(None) == [[3, 5]]
+
+
+def side_by_side_ids(at_legs, gap=0.6, seconds=5.0):
+    """The ids shown while two people walk side by side, ``gap`` m between their paths,
+    away from a scanner (the defaults), from their second second on."""
+    from extended_tracker.pipeline import PipelineState, step
+    from extended_tracker.sim.laser import LaserSpec, Scene, SimObject, simulate
+    from extended_tracker.sim.leg_scenes import at_leg_height
+
+    scene = Scene(objects=(SimObject((1.0, 0.0), (1.2, 0.0)),
+                           SimObject((1.0, gap), (1.2, 0.0))), laser=LaserSpec())
+    scene = at_leg_height(scene) if at_legs else scene
+    cfg, shown = from_dict({}), []
+    state = PipelineState.initial(cfg)
+    for k, (scan, _) in enumerate(simulate(scene, seconds, seed=1)):
+        state, res = step(state, scan, cfg)
+        if k >= 10:
+            shown.append(sorted(res.estimates.label.tolist()))
+    return shown
+
+
+@pytest.mark.parametrize('at_legs', [False, True])
+def test_two_people_side_by_side_stay_two_at_either_height(at_legs):
+    """With the defaults, two people walking side by side 0.6 m apart are two ids in
+    every scan: at body height each is too wide a return to be a leg (their pair was
+    joined into one id), at leg height their four legs pair two by two."""
+    shown = side_by_side_ids(at_legs)
+    assert all(len(ids) == 2 for ids in shown)
+    assert len({lab for ids in shown for lab in ids}) == 2
+
+
 def test_a_pair_forming_keeps_its_partner_when_a_nearer_fragment_is_born():
     """Pairs go nearest first, but a pair already forming goes before them all: on the
     leg_tracker demo a walker near the scanner had fragments born beside its legs, each

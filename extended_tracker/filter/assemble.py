@@ -29,11 +29,14 @@ class UpdateFacts:
         new label: its heaviest birth cell).
     visibility : dict
         Label -> visible fraction of its heaviest predicted component.
+    widths : dict
+        Label -> width of the returns of that same cell (m, :func:`cell_widths`).
 
     """
 
     detections: dict = field(default_factory=dict)
     visibility: dict = field(default_factory=dict)
+    widths: dict = field(default_factory=dict)
 
 
 def assemble(pred: FilterState, pairs, kept, weights: UpdateWeights, visibility,
@@ -68,11 +71,26 @@ def assemble(pred: FilterState, pairs, kept, weights: UpdateWeights, visibility,
         mix.with_weights(w_missed),
         pairs.updated.take(rows).mixture(np.concatenate([w_det[sel], w_birth[bsel]]),
                                          np.concatenate([mix.label[kept.comp[sel]], born]))])
-    detections = detections_per_label(mix, kept.comp, kept.cell, w_det, w_missed,
-                                      pairs.stats.n)
-    for lab, c in birth_label_cells(born, bsel, w_birth, pred.next_label):
-        detections[lab] = int(pairs.stats.n[c])
-    return posterior, next_label, UpdateFacts(detections, _visibility_per_label(mix, visibility))
+    cells = detected_cells(mix, kept.comp, kept.cell, w_det, w_missed)
+    cells.update(birth_label_cells(born, bsel, w_birth, pred.next_label))
+    width = cell_widths(pairs.stats)
+    return posterior, next_label, UpdateFacts(
+        {lab: int(pairs.stats.n[c]) for lab, c in cells.items()},
+        _visibility_per_label(mix, visibility),
+        {lab: float(width[c]) for lab, c in cells.items()})
+
+
+def cell_widths(stats) -> np.ndarray:
+    """
+    Per cell, the width of its returns (m): ``sqrt(12 l (n - 1) / (n + 1))``, ``l`` the
+    largest eigenvalue of the scatter of its ``n`` returns over ``n``: the length of the
+    segment its returns would lie evenly spaced along, end to end (0 for a lone return).
+    """
+    n = np.maximum(stats.n, 1).astype(float)
+    if not len(n):
+        return np.zeros(0)
+    spread = np.linalg.eigvalsh(stats.scatter / n[:, None, None])[:, -1]
+    return np.sqrt(12.0 * np.maximum(spread, 0.0) * (n - 1.0) / (n + 1.0))
 
 
 def _visibility_per_label(mix: Mixture, visibility) -> dict:
@@ -84,10 +102,10 @@ def _visibility_per_label(mix: Mixture, visibility) -> dict:
     return dict(zip(mix.label[heads].tolist(), visibility[heads].tolist()))
 
 
-def detections_per_label(mix: Mixture, comp, cell, w_det, w_missed, cell_size) -> dict:
+def detected_cells(mix: Mixture, comp, cell, w_det, w_missed) -> dict:
     """
-    Size of each label's heaviest detected cell, where the label's detected weight
-    outweighs its missed weight. Ties in weight but for the last bits: the first pair
+    Each label's heaviest detected cell, where the label's detected weight outweighs its
+    missed weight. Ties in weight but for the last bits: the first pair
     (:func:`mixture.weight_key`).
     """
     if not len(comp):
@@ -100,5 +118,5 @@ def detections_per_label(mix: Mixture, comp, cell, w_det, w_missed, cell_size) -
     for j, r in enumerate(rank[comp].tolist()):
         if r not in heaviest or keys[j] > keys[heaviest[r]]:
             heaviest[r] = j
-    return {int(labels[r]): int(cell_size[cell[j]]) for r, j in sorted(heaviest.items())
+    return {int(labels[r]): int(cell[j]) for r, j in sorted(heaviest.items())
             if detected[r] > missed[r]}

@@ -67,7 +67,7 @@ def manage_tracks(filt: FilterState, record: TrackRecord, facts: UpdateFacts,
     joined = forming = NO_LABELS
     if cfg.reduction.pair_scans:
         filt, new_record, candidates, joined, forming = join_pairs(filt, new_record,
-                                                                   candidates, cfg)
+                                                                   candidates, cfg, facts.widths)
         diag.joined_labels = len(joined)
     confirmed = _to_show(new_record, record, candidates, forming, cfg)
     shown = candidates.take(confirmed)

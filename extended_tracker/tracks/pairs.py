@@ -11,17 +11,26 @@ from ..filter.cardinality import thin_cardinality
 from ..filter.mixture import Mixture
 from ..filter.reduction import join_parts
 from ..filter.state import FilterState
+from ..sensing.legs import LEG_WIDTH
 from .estimates import Estimates
 from .record import NO_LABELS, SETTLED_SCANS, TrackRecord
 
+#: the widest returns of a part in one scan (m): a leg's, as :mod:`sensing.legs` has it;
+#: two people side by side at body height, half a metre apart, return 0.3-0.45 m each
+PART_WIDTH = LEG_WIDTH
 
-def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: TrackerConfig):
+
+def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: TrackerConfig,
+               widths: dict | None = None):
     """
     Make one track of two extracted labels that have stayed together as parts of one
     object (a walker's two legs).
 
     Two extracted labels are a candidate pair when one of them is part-sized (semi-major
-    axis at most ``reduction.pair_semi_axis``), their centres are within
+    axis at most ``reduction.pair_semi_axis``, and the returns of its cell this scan, in
+    ``widths``, at most :data:`PART_WIDTH` wide: a leg, not a person at body height, whose
+    extent the filter may hold as small; a label no cell updated this scan is judged by
+    its extent alone), their centres are within
     ``reduction.pair_distance`` and their velocities differ by at most
     ``reduction.pair_speed`` (one to one: pairs already forming first, then the nearest),
     and both or neither are *settled* (shown ``SETTLED_SCANS`` scans in a row without
@@ -68,8 +77,10 @@ def join_pairs(filt: FilterState, record: TrackRecord, est: Estimates, cfg: Trac
         d2 = np.sum(d * d, axis=1)
         old = record.reported_scans >= SETTLED_SCANS
         settled = record.settled_rows(cfg.background.moved_distance)
+        width = np.array([(widths or {}).get(lab, 0.0) for lab in est.label.tolist()])
+        part = (semi <= rc.pair_semi_axis) & (width <= PART_WIDTH)
         # a settled part pairs with a settled one only, and two old movers not at all
-        ok = ((np.minimum(semi[i], semi[j]) <= rc.pair_semi_axis)
+        ok = ((part[i] | part[j])
               & (settled[i] == settled[j]) & ~(old[i] & old[j] & ~settled[i])
               & (d2 <= rc.pair_distance ** 2)
               & (np.sum(dv * dv, axis=1) <= rc.pair_speed ** 2)).nonzero()[0]
