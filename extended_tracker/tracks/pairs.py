@@ -16,7 +16,7 @@ from .estimates import Estimates
 from .record import NO_LABELS, SETTLED_SCANS, TrackRecord
 
 #: the widest returns of a part in one scan (m): a leg's, as :mod:`sensing.legs` has it;
-#: two people side by side at body height, half a metre apart, return 0.3-0.45 m each
+#: two people side by side at body height, half a metre apart, return mostly 0.3-0.45 m
 PART_WIDTH = LEG_WIDTH
 
 
