@@ -171,8 +171,8 @@ def warm_up_detections(cfg, results):
 def test_the_clutter_rate_is_learned_from_the_first_scan_after_the_warm_up():
     """The warm-up shows the filter only what stands out or came, so its clutter count
     is no measure of the scan's: the learned rate starts after it, near the simulated
-    15 returns per scan (learned during the warm-up it began near 4 and took seconds
-    to climb, while pairs of clutter returns were born as objects)."""
+    15 returns per scan (learned during the warm-up it began near 4 and was still
+    below 8 a second and a half later)."""
     scene = clutter_scene()
     state, rates = PipelineState.initial(CFG), []
     for scan, _ in simulate(scene, 2.0, seed=0):

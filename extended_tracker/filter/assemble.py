@@ -11,6 +11,7 @@ import numpy as np
 
 from ..config import TrackerConfig
 from ..diagnostics import Diagnostics
+from .algebra2 import eig2
 from .births import birth_label_cells, cell_claims, label_births
 from .cphd import UpdateWeights
 from .mixture import Mixture, weight_key
@@ -87,9 +88,7 @@ def cell_widths(stats) -> np.ndarray:
     segment its returns would lie evenly spaced along, end to end (0 for a lone return).
     """
     n = np.maximum(stats.n, 1).astype(float)
-    if not len(n):
-        return np.zeros(0)
-    spread = np.linalg.eigvalsh(stats.scatter / n[:, None, None])[:, -1]
+    spread = eig2(stats.scatter / n[:, None, None])[0]
     return np.sqrt(12.0 * np.maximum(spread, 0.0) * (n - 1.0) / (n + 1.0))
 
 
