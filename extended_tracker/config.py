@@ -182,11 +182,11 @@ class ExtractionConfig:
                               's', 0.0, 100.0)
     handover_distance: float = _f(0.8, 'how near the lost id\'s extrapolated position the new '
                                   'object must be', 'm', 0.0, 100.0)
-    group_gap: float = _f(0.5, 'thin contour pieces (a car\'s side and its end) one of which '
-                          'ends this close to the other and whose velocities agree within '
-                          'group_speed are reported as one object (0: never)', 'm', 0.0, 10.0)
-    group_speed: float = _f(2.0, 'how closely the velocities of grouped pieces agree', 'm/s',
-                            0.0, 100.0)
+    group_gap: float = _f(0.5, 'thin contour pieces (a car\'s side and its end), one ending this '
+                          'close to the other and moving alike (group_speed), are one object '
+                          '(0: never)', 'm', 0.0, 10.0)
+    group_speed: float = _f(2.0, 'how closely grouped pieces\' velocities agree, beyond half '
+                            'the faster\'s speed', 'm/s', 0.0, 100.0)
     rectangle_length: float = _f(1.2, 'objects longer than this are drawn as rectangles', 'm',
                                  0.0, 100.0)
     rectangle_elongation: float = _f(2.5, 'or more elongated than this (semi-axes ratio) and '
