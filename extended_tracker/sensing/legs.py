@@ -104,8 +104,8 @@ def legs_seen(evidence: LegEvidence, sp: ScanPoints, dt: float, cfg: TrackerConf
     if evidence.seen or cfg.partition.leg_gap <= 0:
         return evidence
     keep = math.exp(-max(dt, 0.0) / MEMORY)
-    share = keep * evidence.share(scanner) + (1.0 - keep) * (leg_pairs(sp) > 0)
     shares = dict(evidence.shares)
+    share = keep * shares.get(scanner, 0.0) + (1.0 - keep) * (leg_pairs(sp) > 0)
     shares[scanner] = share
     return LegEvidence(tuple(shares.items()), share >= SHARE)
 

@@ -140,8 +140,8 @@ def _touching(est: Estimates, seg, u, half, ends, gap: float, speed: float):
     d = np.minimum(d, d.T)
     v = est.m[seg, 2:]
     dv = _norm(v[:, None] - v[None], 2)
-    fastest = np.maximum.outer(_norm(v, 1), _norm(v, 1))
-    near = (d <= gap) & (dv <= speed + GROWING_LAG * fastest)
+    pace = _norm(v, 1)
+    near = (d <= gap) & (dv <= speed + GROWING_LAG * np.maximum.outer(pace, pace))
     np.fill_diagonal(near, False)
     if not near.any():
         return None
