@@ -487,11 +487,12 @@ def test_a_person_hidden_for_a_few_scans_while_standing_still_stays_protected():
     assert len(labels) == 1
 
 
-def _fan(ranges_per_scan, cfg, n_beams=31, tracked=None):
+def _fan(ranges_per_scan, cfg, n_beams=31, tracked=None, range_max=LaserSpec.range_max):
     """Feed whole scans of ranges (0.35 deg apart) with nothing protected (and the beams
     ``tracked`` near a reported track); the keep-masks over the beams (True: the beam's
     return reached the filter)."""
-    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams)
+    spec = LaserSpec(angle_min=-0.0925, angle_max=0.0925, n_beams=n_beams,
+                     range_max=range_max)
     (scan, _), = simulate(Scene((), laser=spec), 0.1, seed=0)
     state, kept = None, []
     for ranges in ranges_per_scan:
@@ -694,6 +695,26 @@ def test_a_person_stepping_into_an_open_doorway_does_not_continue_the_wall():
     assert state.free[10:21].all() and np.isfinite(state.background[:10]).all()
     assert all(k[10:21].all() and not k[:10].any() and not k[21:].any() for k in kept[12:])
     assert np.isnan(state.background[10:21]).all()
+
+
+def test_a_surface_fading_in_and_out_at_the_edge_of_range_continues_the_wall():
+    """
+    The leg_tracker demo's far wall: 5.45 m away, range 5.6 m. Beams 0-14 return it
+    every scan; on beams 15-30 it fades: they return nothing for 1.5 s (seen free), then
+    a few of them return it in one scan. Within the last 5 % of the range those returns
+    continue the learned wall and are learned at once. The same geometry well within
+    range is the open doorway above: a return there reaches the filter.
+    """
+    cfg = from_dict({}).background
+    wall = np.where(np.arange(31) < 15, 5.45, np.inf)
+    some = wall.copy()
+    some[15:19] = 5.47
+    for range_max, learned in ((5.6, True), (6.0, False)):
+        state, kept = _fan([wall] * 15 + [some], cfg, range_max=range_max)
+        assert state.free[15:].all() and np.isfinite(state.background[:15]).all()
+        assert not kept[-1][:15].any()
+        assert kept[-1][15:19].all() != learned, range_max
+        assert np.isfinite(state.background[15:19]).all() == learned
 
 
 def test_a_scan_at_other_angles_takes_the_nearest_beams_background():

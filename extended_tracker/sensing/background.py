@@ -25,10 +25,7 @@ is *ripe*:
   ``confirm_time``, nearer or farther, becomes the beam's *second* background range: the
   beam flips between the two (an object's edge, a thin post or table leg that the beam
   hits in some scans only). A second range not returned for ``forget_time`` is
-  forgotten.
-
-Keeping two candidates lets both ranges of a flipping beam age: with one, every flip
-restarted it and an edge beam of a post was never learned.
+  forgotten. (With one candidate every flip restarted it: a post's edge beam never aged.)
 
 Beams whose return lies within ``track_gate`` of a *protecting* track (confirmed,
 person-sized and moved ``moved_distance`` beyond its first extent while seen: the caller
@@ -43,23 +40,24 @@ for hundreds of scans.) A return that completes its beam's confirmation is backg
 that same scan; ``learned`` marks those beams, so that the caller can drop the tracks
 that stood on them.
 
-A beam with no background that was never seen free (hidden behind a walker before its
-background was learned, say) and now returns the range of a neighbour's background, the
-neighbour within ``margin`` across, continues that surface: its return is learned at
-once, and beams continuing it in turn with it, so that a stretch of wall revealed when
-the walker leaves is not tracked as an object for the ``confirm_time`` it would take to
-ripen (the bundled demo's wall, the ``walls`` scene's, a far wall on MiR). A person
-standing in front of the revealed wall by more than ``margin`` continues nothing, and
-returns near a reported track continue nothing either: on leg_tracker positive_1 a
-walker who stood from start-up, one leg learned in the warm-up, lost the other leg's
-returns that way.
-
 A beam that has returned nothing for ``confirm_time`` while its background was unknown is
-*free* (open space, or nothing within range). Where the background is unknown and the
-beam was never seen free (a stretch of wall hidden behind a person since start-up), tracks
-protect nothing, so a revealed wall that gets tracked is still learned. Each beam keeps
-the farthest range it returned (open space: infinite): in the warm-up, a return nearer
-than it by over ``margin`` came into the beam (:func:`arrived`).
+*free* (open space, or nothing within range). A beam with no background, never seen free
+(hidden behind a walker before its background was learned, say) or returning from the
+last ``RANGE_EDGE`` of ``range_max`` (where a surface fades in and out, the beams between
+its returns looking free), that returns the range of a neighbour's background, the
+neighbour within ``margin`` across, continues that surface: its return is learned at
+once, and beams continuing it in turn with it. So a wall revealed when the walker leaves
+is not tracked as an object for the ``confirm_time`` it would take to ripen (the bundled
+demo's wall, the ``walls`` scene's, a far wall on MiR), nor is a wall at the edge of range
+(5.45 m of 5.6 m on the leg_tracker demo: born as an object, it took the returns of a
+spot 0.9 m away and was counted as a walker). A person standing in front of the surface
+by more than ``margin`` continues nothing, and returns near a reported track continue
+nothing either: on leg_tracker positive_1 a walker who stood from start-up, one leg
+learned in the warm-up, lost the other leg's returns that way. Where the background is
+unknown and the beam was never seen free, tracks protect nothing, so a revealed wall that
+gets tracked is still learned. Each beam keeps the farthest range it returned (open
+space: infinite): in the warm-up, a return nearer than it by over ``margin`` came into
+the beam (:func:`arrived`).
 
 A per-beam model cannot tell a person who stands still from start-up from a piece of
 furniture: the caller marks the beams of *objects* (:mod:`sensing.objects`), which are
@@ -78,6 +76,7 @@ import numpy as np
 
 from .scan import ScanPoints
 
+RANGE_EDGE = 0.05                   # the last share of range_max: surfaces fade in and out
 #: a beam that has returned nothing this long since start-up looks into open space (s);
 #: shorter runs of nothing are dropouts (a dark or glancing surface missed now and then)
 OPEN_SPACE_TIME = 0.5
@@ -419,10 +418,10 @@ def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked, obje
     ``forget_time``, or once ripe for a return thinner than the beam spacing (no person;
     a mixed return at an edge, a thin pole). A background returned within
     ``confirm_time`` means the beam flips between it and the candidate (an object's edge,
-    a thin post): the candidate is a second range. A beam hidden before it was learned
-    (no background, never seen free) that returns the range of a neighbour's background
-    continues that surface and is learned at once (not near a track). An object's beam
-    (``objects``) is ripe, and promoted whatever it is, once returned for ``object_time``.
+    a thin post): the candidate is a second range. A beam of unknown background, never
+    seen free or returning from the edge of range, that returns the range of a
+    neighbour's background continues that surface and is learned at once (not near a
+    track). An object's beam (``objects``) is promoted once returned for ``object_time``.
     """
     r, b, margin = scan.ranges, seen.b, cfg.margin
     reach = reach_of(scan.angle_step, margin)
@@ -436,7 +435,8 @@ def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked, obje
     if thin.any():
         which = thin.nonzero()[0]
         thin[which] = _alone(r, which, reach, margin, wrap)
-    hidden = learn & ~seen.known & ~seen.free
+    at_edge = r >= (1.0 - RANGE_EDGE) * scan.range_max   # (no return, r inf: not in learn)
+    hidden = learn & ~seen.known & (~seen.free | at_edge)
     if tracked is not None:
         hidden &= ~tracked
     if hidden.any():
