@@ -435,7 +435,7 @@ def _promotions(scan: ScanPoints, cfg, learn, seen: _Seen, c, age, tracked, obje
     if thin.any():
         which = thin.nonzero()[0]
         thin[which] = _alone(r, which, reach, margin, wrap)
-    at_edge = r >= (1.0 - RANGE_EDGE) * scan.range_max   # (no return, r inf: not in learn)
+    at_edge = r >= (1.0 - RANGE_EDGE) * scan.range_max   # inf (no return): learn drops it
     hidden = learn & ~seen.known & (~seen.free | at_edge)
     if tracked is not None:
         hidden &= ~tracked
