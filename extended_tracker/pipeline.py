@@ -235,7 +235,7 @@ def step(state: PipelineState, scan, cfg: TrackerConfig, arrival_ns: int | None 
     pred = drop_absorbed(pred, fg.learned, fg.points, cfg, diag,
                          first_new=scan_in.filter.next_label)
     pred, vis = detect(pred, sp, cfg, diag, pose,
-                       seen_elsewhere(state, pred.mixture.m[:, :2]))
+                       seen_elsewhere(state, pred.mixture.m[:, :2]), fg.beams)
     filt, tracks, estimates = update_tracks(pred, scan_in.tracks, fg.points, sp, vis, scan_cfg,
                                             dt, diag, pose)
     if diag.unexplained:

@@ -39,7 +39,8 @@ class Foreground:
     """
     What :func:`remove_background` leaves: the learned per-beam ``background`` and
     ``static_map``, the foreground ``points`` and the ``background_points`` (fixed frame),
-    the returns ``learned`` as static this scan, and the labels seen to move.
+    the returns ``learned`` as static this scan, the labels seen to move, and which
+    ``beams`` the foreground returns lie on (None with the background off).
     """
 
     background: BackgroundState | None
@@ -48,6 +49,7 @@ class Foreground:
     background_points: np.ndarray
     learned: np.ndarray
     moved: np.ndarray
+    beams: np.ndarray | None = None
 
 
 def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints, dt: float,
@@ -102,8 +104,10 @@ def remove_background(state: PipelineState, tracks: TrackRecord, sp: ScanPoints,
         came = arrived(state.background, sp, bgc.margin) & (not state.moving)
         keep &= (small | came)[sp.beam]
     points, bg_points = view.to_outer(sp.points[keep]), view.to_outer(sp.points[~keep])
+    beams = np.zeros(len(sp.angles), dtype=bool)
+    beams[sp.beam[keep]] = True
     return Foreground(background, static_map, points, bg_points,
-                      view.to_outer(sp.points[learned]), moved)
+                      view.to_outer(sp.points[learned]), moved, beams)
 
 
 def drop_absorbed(pred: FilterState, learned: np.ndarray, points: np.ndarray,
@@ -143,7 +147,8 @@ def absorbed(mix, learned: np.ndarray, points: np.ndarray, cfg: TrackerConfig) -
 
 def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig, diag: Diagnostics,
            pose: Pose2 | None = None,
-           elsewhere: np.ndarray | None = None) -> tuple[FilterState, Visibility]:
+           elsewhere: np.ndarray | None = None,
+           foreground: np.ndarray | None = None) -> tuple[FilterState, Visibility]:
     """
     The detection model of the predicted components; drop those that are no object in
     view.
@@ -156,10 +161,11 @@ def detect(pred: FilterState, sp: ScanPoints, cfg: TrackerConfig, diag: Diagnost
     The model reads the components in the scanner's frame (at ``pose`` in the fixed
     frame); the centroid offsets it gives are turned back into the fixed frame. With
     several scanners, a component out of this one's view that another scanner looks at
-    (``elsewhere``) is kept: this scan cannot see it, that one can.
+    (``elsewhere``) is kept: this scan cannot see it, that one can. ``foreground`` marks
+    the beams whose return is no background (:func:`sensing.detection.detection_model`).
     """
     view = pose or Pose2()
-    vis = detection_model(mixture_to_inner(view, pred.mixture), sp, cfg)
+    vis = detection_model(mixture_to_inner(view, pred.mixture), sp, cfg, foreground)
     if vis.offset is not None:
         vis = replace(vis, offset=view.vectors_to_outer(vis.offset))
     if vis.outside is None:
@@ -191,7 +197,8 @@ def update_tracks(pred: FilterState, tracks: TrackRecord, points: np.ndarray,
     both read in the scanner's frame (at ``pose`` in the fixed frame).
     """
     view = pose or Pose2()
-    sensor = SensorTerms(vis.p_d, vis.rate_scale, vis.visible, vis.offset, vis.shadowed)
+    sensor = SensorTerms(vis.p_d, vis.rate_scale, vis.visible, vis.offset, vis.shadowed,
+                         vis.in_open)
     clutter = (sp.beam_clutter_log_density(view.to_inner(points))
                if cfg.model.clutter_density == 'beam' else None)
     pairs = pair_updates(pred.mixture, points, cfg, sensor, sp.area, clutter)

@@ -829,6 +829,31 @@ def test_components_larger_than_any_object_or_lost_within_metres_are_dropped():
     assert implausible(mix, cfg).tolist() == [False, True, False, True, True, True]
 
 
+@pytest.mark.parametrize('open_std, kept', [(6.0, [True, True, False, False]),
+                                             (2.0, [False, False, False, False])])
+def test_labels_with_nothing_static_in_front_coast_on_to_the_open_limit(open_std, kept):
+    """
+    Position stds 2.9, 4.5, 6.5 m, and 4.5 m of a label not named: past
+    ``max_position_std`` (3 m) a component of a label ``in_open`` is kept up to
+    ``max_open_position_std`` (6 m), the others are dropped; an open limit of 2 m drops
+    even the first.
+    """
+    from extended_tracker.config import from_dict
+    from extended_tracker.filter.update import implausible
+
+    cfg = from_dict({'reduction': {'max_open_position_std': open_std}})
+    std = np.array([2.9, 4.5, 6.5, 4.5])
+    P = np.tile(np.eye(4) * 0.1, (4, 1, 1))
+    P[:, 0, 0] = P[:, 1, 1] = std ** 2
+    V = (20.0 - IW_OFFSET) * 0.09 * np.eye(2)
+    mix = Mixture(np.ones(4), np.full(4, 10.0), np.ones(4), np.zeros((4, 4)), P,
+                  np.full(4, 20.0), np.tile(V, (4, 1, 1)), np.array([1, 1, 2, 3]))
+    assert (~implausible(mix, cfg, np.array([1, 2]))).tolist() == kept
+    assert (~implausible(mix, cfg)).tolist() == [True, False, False, False]
+    assert (~implausible(mix, cfg, np.array([], dtype=int))).tolist() == [True, False, False,
+                                                                         False]
+
+
 @pytest.mark.parametrize('scale', [0.3, 1.5, 3.0, 4.5])
 def test_implausible_extents_against_eigvalsh(scale):
     """The extent test against numpy's eigenvalues, whether every trace is under the limit

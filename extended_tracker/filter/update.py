@@ -55,6 +55,9 @@ class SensorTerms:
         Expected offset of the visible part's centroid from the centre (m).
     shadowed : (n,) bool array or None
         Components whose own extent lies wholly in shadow (see :func:`hidden.held_p_d`).
+    in_open : (n,) bool array or None
+        Components that coasted far with no background in front of them: they may coast
+        on to ``reduction.max_open_position_std`` (:func:`implausible`).
 
     """
 
@@ -63,6 +66,7 @@ class SensorTerms:
     visibility: np.ndarray | None = None
     centroid_offset: np.ndarray | None = None
     shadowed: np.ndarray | None = None
+    in_open: np.ndarray | None = None
 
     @staticmethod
     def constant(n: int, p_d: float) -> 'SensorTerms':
@@ -313,7 +317,8 @@ def update(pred: FilterState, pairs: Pairs, sensor: SensorTerms, pair_p_d: np.nd
     diag.unexplained = int(not weights.possible)
     posterior, next_label, facts = assemble(pred, pairs, kept, weights, sensor.visibility,
                                             cfg, diag)
-    reduced = reduce(posterior, cfg, diag)
+    in_open = None if sensor.in_open is None else pred.mixture.label[sensor.in_open]
+    reduced = reduce(posterior, cfg, diag, in_open)
     learned = pred.clutter_rate
     if weights.possible and learn_clutter:
         count = clutter_count(weights, pairs.stats.n, len(pairs.points))
@@ -406,9 +411,11 @@ def cardinality_update(pred: FilterState, pairs: Pairs, kept: _Kept, log_g: np.n
                          out.log_partition_weight, out.possible)
 
 
-def reduce(posterior: Mixture, cfg: TrackerConfig, diag: Diagnostics) -> Mixture:
-    """Drop implausible components, then prune, merge and cap (:func:`reduce_mixture`)."""
-    oversized = implausible(posterior, cfg)
+def reduce(posterior: Mixture, cfg: TrackerConfig, diag: Diagnostics,
+           in_open: np.ndarray | None = None) -> Mixture:
+    """Drop implausible components (``in_open``: see :func:`implausible`), then prune,
+    merge and cap (:func:`reduce_mixture`)."""
+    oversized = implausible(posterior, cfg, in_open)
     diag.oversized = int(np.count_nonzero(oversized))
     if diag.oversized:
         posterior = posterior.take(~oversized)
@@ -418,14 +425,21 @@ def reduce(posterior: Mixture, cfg: TrackerConfig, diag: Diagnostics) -> Mixture
     return reduced
 
 
-def implausible(mix: Mixture, cfg: TrackerConfig) -> np.ndarray:
+def implausible(mix: Mixture, cfg: TrackerConfig, in_open: np.ndarray | None = None
+                ) -> np.ndarray:
     """
     Components to drop: larger than any object tracked here (walls, clutter lines), or
     coasted until their position is unknown within metres (they could only claim
-    far-away returns).
+    far-away returns): a position std past ``max_position_std``, or past
+    ``max_open_position_std`` for the labels ``in_open`` (no background in front of them,
+    :class:`SensorTerms`).
     """
+    red = cfg.reduction
+    limit = np.full(len(mix), red.max_position_std)
+    if in_open is not None and len(in_open):
+        limit[np.isin(mix.label, in_open)] = red.max_open_position_std
     pos_var = np.maximum(mix.P[:, 0, 0], mix.P[:, 1, 1])
-    coasted = pos_var > cfg.reduction.max_position_std ** 2
+    coasted = pos_var > limit ** 2
     if not len(mix):
         return coasted
     major2, _ = eig2(mix.expected_extent())

@@ -35,6 +35,7 @@ class Visibility:
     shadowed: np.ndarray | None = None     # the plain interval (extent alone) wholly shadowed
     at_sensor: np.ndarray | None = None    # the sensor within the outline: not an object
     sparse: np.ndarray | None = None       # in view, far fewer returns than beams spanned
+    in_open: np.ndarray | None = None      # coasted far, no background return in front
 
     def take(self, rows) -> 'Visibility':
         """The model of the components ``rows`` (an index or mask), every field alike."""
@@ -42,7 +43,8 @@ class Visibility:
         return Visibility(*(None if a is None else a[rows] for a in values))
 
 
-def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
+def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
+                    foreground: np.ndarray | None = None) -> Visibility:
     """
     p_D of every predicted component for one scan, by ``cfg.detection.model``.
 
@@ -53,6 +55,9 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     scan : ScanPoints or None
         The scan (None for constant p_D without a scan).
     cfg : TrackerConfig
+    foreground : (B,) bool array, optional
+        The beams whose return is no background (reaches the filter); with it the model
+        says which components are ``in_open`` (:func:`_in_the_open`).
 
     """
     det = cfg.detection
@@ -100,8 +105,35 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg) -> Visibility:
     sparse = _sparse(mix, half, plain, step, det.min_fill)
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, MIN_RATE_SCALE) if det.scale_rate_by_visibility else None
+    in_open = _in_the_open(mix, bearing, half, r_near, scan, foreground, cfg)
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0,
-                      at_sensor, sparse)
+                      at_sensor, sparse, in_open)
+
+
+def _in_the_open(mix: Mixture, bearing, half, r_near, scan: ScanPoints,
+                 foreground: np.ndarray | None, cfg) -> np.ndarray | None:
+    """
+    Of the components whose position std may be past ``reduction.max_position_std`` (the
+    trace of its covariance, whatever the frame), those with no background return nearer
+    than them in their interval: hidden by people, or by nothing. None without
+    ``foreground`` (the background off: a wall and a person are alike).
+
+    A walker hidden in a crowd stays in the shadow of the people in front, and comes out
+    where it was heading; behind a wall or a cabinet it may have gone anywhere, and a track
+    coasting there was often never an object (a spot that took a stray return and walked
+    off behind the wall).
+    """
+    if foreground is None:
+        return None
+    out = np.zeros(len(mix), dtype=bool)
+    spread = mix.P[:, 0, 0] + mix.P[:, 1, 1] > cfg.reduction.max_position_std ** 2
+    rows = spread.nonzero()[0]
+    if len(rows):
+        static = np.where(foreground, np.inf, scan.ranges)
+        seen = visible_fraction(bearing[rows], half[rows], r_near[rows], scan, static,
+                                cfg.detection.shadow_margin, shift_rows=0)[0]
+        out[rows] = seen == 1.0
+    return out
 
 
 def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
