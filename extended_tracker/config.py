@@ -145,7 +145,7 @@ class ReductionConfig:
                               '(walls, not objects)', 'm', 0.0, 1000.0, lo_open=True)
     max_position_std: float = _f(3.0, 'components whose position std grew beyond this are '
                                  'dropped', 'm', 0.0, 1000.0, lo_open=True)
-    max_open_position_std: float = _f(6.0, 'the limit instead for those with no background in '
+    max_open_position_std: float = _f(6.0, 'max_position_std for those with no background in '
                                       'front (hidden by people, not walls)', 'm', 0.0, 1000.0,
                                       lo_open=True)
     fuse_weight: float = _f(1.5, 'two labels on one spot (within merge_distance) whose weights '

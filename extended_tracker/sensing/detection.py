@@ -113,10 +113,11 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
 def _in_the_open(mix: Mixture, bearing, half, r_near, scan: ScanPoints,
                  foreground: np.ndarray | None, cfg) -> np.ndarray | None:
     """
-    Of the components whose position std may be past ``reduction.max_position_std`` (the
-    trace of its covariance, whatever the frame), those with no background return nearer
-    than them in their interval: hidden by people, or by nothing. None without
-    ``foreground`` (the background off: a wall and a person are alike).
+    Of the components whose position std may be past ``reduction.max_position_std`` (by
+    the trace of their position covariance, which no turn of the frame changes), those
+    with no background return nearer than them in their interval: hidden by people, or
+    by nothing. None without ``foreground`` (the background off: a wall and a person are
+    alike).
 
     A walker hidden in a crowd stays in the shadow of the people in front, and comes out
     where it was heading; behind a wall or a cabinet it may have gone anywhere, and a track
