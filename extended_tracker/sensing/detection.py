@@ -120,9 +120,8 @@ def _in_the_open(mix: Mixture, bearing, half, r_near, scan: ScanPoints,
     alike).
 
     A walker hidden in a crowd stays in the shadow of the people in front, and comes out
-    where it was heading; behind a wall or a cabinet it may have gone anywhere, and a track
-    coasting there was often never an object (a spot that took a stray return and walked
-    off behind the wall).
+    where it was heading; behind a wall or a cabinet it may have gone anywhere, and a
+    static spot that took one stray return can walk off there (doc/model.md 4).
     """
     if foreground is None:
         return None
