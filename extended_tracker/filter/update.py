@@ -56,8 +56,8 @@ class SensorTerms:
     shadowed : (n,) bool array or None
         Components whose own extent lies wholly in shadow (see :func:`hidden.held_p_d`).
     in_open : (n,) bool array or None
-        Components that coasted far with no background in front of them: they may coast
-        on to ``reduction.max_open_position_std`` (:func:`implausible`).
+        Components with no background in front of them: their labels may coast on to
+        ``reduction.max_open_position_std`` (:func:`implausible`).
 
     """
 

@@ -35,7 +35,7 @@ class Visibility:
     shadowed: np.ndarray | None = None     # the plain interval (extent alone) wholly shadowed
     at_sensor: np.ndarray | None = None    # the sensor within the outline: not an object
     sparse: np.ndarray | None = None       # in view, far fewer returns than beams spanned
-    in_open: np.ndarray | None = None      # coasted far, no background return in front
+    in_open: np.ndarray | None = None      # no background return in front
 
     def take(self, rows) -> 'Visibility':
         """The model of the components ``rows`` (an index or mask), every field alike."""
@@ -105,35 +105,28 @@ def detection_model(mix: Mixture, scan: ScanPoints | None, cfg,
     sparse = _sparse(mix, half, plain, step, det.min_fill)
     visible = _seen(visible, r_near, scan, det)
     rate_scale = np.maximum(visible, MIN_RATE_SCALE) if det.scale_rate_by_visibility else None
-    in_open = _in_the_open(mix, bearing, half, r_near, scan, foreground, cfg)
+    # without the background a wall and a person are alike: no answer
+    in_open = (None if foreground is None
+               else _in_the_open(bearing, half, r_near, scan, foreground, det))
     return Visibility(det.p_d0 * visible, visible, rate_scale, offset, outside, plain == 0.0,
                       at_sensor, sparse, in_open)
 
 
-def _in_the_open(mix: Mixture, bearing, half, r_near, scan: ScanPoints,
-                 foreground: np.ndarray | None, cfg) -> np.ndarray | None:
+def _in_the_open(bearing, half, r_near, scan: ScanPoints, foreground: np.ndarray,
+                 det) -> np.ndarray:
     """
-    Of the components whose position std may be past ``reduction.max_position_std`` (by
-    the trace of their position covariance, which no turn of the frame changes), those
-    with no background return nearer than them in their interval: hidden by people, or
-    by nothing. None without ``foreground`` (the background off: a wall and a person are
-    alike).
+    Which components have no background return nearer than them in their interval
+    (``foreground``: the beams whose return is no background): hidden by people, or by
+    nothing.
 
     A walker hidden in a crowd stays in the shadow of the people in front, and comes out
     where it was heading; behind a wall or a cabinet it may have gone anywhere, and a
     static spot that took one stray return can walk off there (doc/model.md 4).
     """
-    if foreground is None:
-        return None
-    out = np.zeros(len(mix), dtype=bool)
-    spread = mix.P[:, 0, 0] + mix.P[:, 1, 1] > cfg.reduction.max_position_std ** 2
-    rows = spread.nonzero()[0]
-    if len(rows):
-        static = np.where(foreground, np.inf, scan.ranges)
-        seen = visible_fraction(bearing[rows], half[rows], r_near[rows], scan, static,
-                                cfg.detection.shadow_margin, shift_rows=0)[0]
-        out[rows] = seen == 1.0
-    return out
+    static = np.where(foreground, np.inf, scan.ranges)
+    seen = visible_fraction(bearing, half, r_near, scan, static, det.shadow_margin,
+                            shift_rows=0)[0]
+    return seen == 1.0
 
 
 def _holds_sensor(m: np.ndarray, extent: np.ndarray) -> np.ndarray:
