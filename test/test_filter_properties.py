@@ -849,9 +849,9 @@ def test_labels_with_nothing_static_in_front_coast_on_to_the_open_limit(open_std
     mix = Mixture(np.ones(4), np.full(4, 10.0), np.ones(4), np.zeros((4, 4)), P,
                   np.full(4, 20.0), np.tile(V, (4, 1, 1)), np.array([1, 1, 2, 3]))
     assert (~implausible(mix, cfg, np.array([1, 2]))).tolist() == kept
-    assert (~implausible(mix, cfg)).tolist() == [True, False, False, False]
-    assert (~implausible(mix, cfg, np.array([], dtype=int))).tolist() == [True, False, False,
-                                                                         False]
+    three_metres_for_all = [True, False, False, False]
+    assert (~implausible(mix, cfg)).tolist() == three_metres_for_all
+    assert (~implausible(mix, cfg, np.array([], dtype=int))).tolist() == three_metres_for_all
 
 
 @pytest.mark.parametrize('scale', [0.3, 1.5, 3.0, 4.5])

@@ -41,23 +41,23 @@ that same scan; ``learned`` marks those beams, so that the caller can drop the t
 that stood on them.
 
 A beam that has returned nothing for ``confirm_time`` while its background was unknown is
-*free* (open space, or nothing within range). A beam with no background, never seen free
-(hidden behind a walker before its background was learned, say) or returning from the
-last ``RANGE_EDGE`` of ``range_max`` (where a surface fades in and out, the beams between
-its returns looking free), that returns the range of a neighbour's background, the
-neighbour within ``margin`` across, continues that surface: its return is learned at
-once, and beams continuing it in turn with it. So a wall revealed when the walker leaves
-is not tracked as an object for the ``confirm_time`` it would take to ripen (the bundled
-demo's wall, the ``walls`` scene's, a far wall on MiR), nor is a wall at the edge of range
-(5.45 m of 5.6 m on the leg_tracker demo: born as an object, it took the returns of a
-spot 0.9 m away and was counted as a walker). A person standing in front of the surface
-by more than ``margin`` continues nothing, and returns near a reported track continue
-nothing either: on leg_tracker positive_1 a walker who stood from start-up, one leg
-learned in the warm-up, lost the other leg's returns that way. Where the background is
-unknown and the beam was never seen free, tracks protect nothing, so a revealed wall that
-gets tracked is still learned. Each beam keeps the farthest range it returned (open
-space: infinite): in the warm-up, a return nearer than it by over ``margin`` came into
-the beam (:func:`arrived`).
+*free* (open space, or nothing within range). Each beam also keeps the farthest range it
+returned (open space: infinite): in the warm-up, a return nearer than it by over
+``margin`` came into the beam (:func:`arrived`).
+
+A beam of unknown background *continues* a neighbour's surface when it returns that
+neighbour's background range (the neighbour within ``margin`` across) and it was never
+seen free (hidden behind a walker before its background was learned) or its return lies in
+the last ``RANGE_EDGE`` of ``range_max`` (a surface there fades in and out, the beams
+between its returns looking free). Such a return is learned at once, and beams continuing
+it in turn with it: a wall revealed when the walker leaves is not tracked for the
+``confirm_time`` it would take to ripen (the bundled demo's, the ``walls`` scene's, a far
+wall on MiR), nor is a wall at the edge of range (5.45 m of 5.6 m on the leg_tracker demo,
+once counted as a walker). A person standing in front of the surface by more than
+``margin`` continues nothing, nor do returns near a reported track (on leg_tracker
+positive_1 a walker standing from start-up, one leg learned in the warm-up, lost the other
+leg's returns that way). Where the background is unknown and the beam was never seen free,
+tracks protect nothing, so a revealed wall that gets tracked is still learned.
 
 A per-beam model cannot tell a person who stands still from start-up from a piece of
 furniture: the caller marks the beams of *objects* (:mod:`sensing.objects`), which are
